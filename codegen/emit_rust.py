@@ -1,0 +1,95 @@
+"""CasADi expression graph -> straight-line Rust (one `let` per operation) and its operation count.
+
+Operations are counted the way SymPyBotics' numbers are quoted: binary `*` and `/` (and x², 2x) as
+multiplications, binary `+` and `-` as additions; negation is free.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import casadi as ca
+
+BINARY = {ca.OP_ADD: "+", ca.OP_SUB: "-", ca.OP_MUL: "*", ca.OP_DIV: "/"}
+MULS = {ca.OP_MUL, ca.OP_DIV, ca.OP_SQ, ca.OP_TWICE}
+ADDS = {ca.OP_ADD, ca.OP_SUB}
+
+
+@dataclass
+class Body:
+    lines: list[str]
+    mul: int
+    add: int
+    used: set[tuple[int, int]]  # (input index, element) actually read
+
+
+def literal(x: float) -> str:
+    if x == 0.0:
+        return "0.0"
+    text = repr(float(x))
+    if "e" not in text and "." not in text and "inf" not in text:
+        text += ".0"
+    return f"({text})" if x < 0 else text
+
+
+def emit(f: ca.Function, input_name: Callable[[int, int], str], n_out: int, out: str = "out") -> Body:
+    """Body of a Rust function evaluating f's single output into `out[0..n_out]`."""
+    slot: dict[int, str] = {}
+    lines: list[str] = []
+    written: set[int] = set()
+    used: set[tuple[int, int]] = set()
+    n_mul = n_add = 0
+    counter = 0
+
+    def fresh(expr: str) -> str:
+        nonlocal counter
+        name = f"x{counter}"
+        counter += 1
+        lines.append(f"let {name} = {expr};")
+        return name
+
+    for k in range(f.n_instructions()):
+        op = f.instruction_id(k)
+        ins = f.instruction_input(k)
+        outs = f.instruction_output(k)
+        if op == ca.OP_INPUT:
+            used.add((ins[0], ins[1]))
+            slot[outs[0]] = input_name(ins[0], ins[1])
+        elif op == ca.OP_CONST:
+            slot[outs[0]] = literal(f.instruction_constant(k))
+        elif op == ca.OP_OUTPUT:
+            idx = outs[1]
+            lines.append(f"{out}[{idx}] = {slot[ins[0]]};")
+            written.add(idx)
+        elif op in BINARY:
+            slot[outs[0]] = fresh(f"{slot[ins[0]]} {BINARY[op]} {slot[ins[1]]}")
+        elif op == ca.OP_NEG:
+            slot[outs[0]] = fresh(f"-{slot[ins[0]]}")
+        elif op == ca.OP_SQ:
+            slot[outs[0]] = fresh(f"{slot[ins[0]]} * {slot[ins[0]]}")
+        elif op == ca.OP_TWICE:
+            slot[outs[0]] = fresh(f"2.0 * {slot[ins[0]]}")
+        elif op == ca.OP_ASSIGN:
+            slot[outs[0]] = slot[ins[0]]
+        else:
+            raise NotImplementedError(f"CasADi operation {op} has no Rust translation")
+        if op in MULS:
+            n_mul += 1
+        elif op in ADDS:
+            n_add += 1
+    for idx in range(n_out):
+        if idx not in written:
+            lines.append(f"{out}[{idx}] = 0.0;")
+    return Body(lines, n_mul, n_add, used)
+
+
+def count(f: ca.Function) -> tuple[int, int]:
+    n_mul = n_add = 0
+    for k in range(f.n_instructions()):
+        op = f.instruction_id(k)
+        if op in MULS:
+            n_mul += 1
+        elif op in ADDS:
+            n_add += 1
+    return n_mul, n_add

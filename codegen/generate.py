@@ -1,0 +1,257 @@
+"""Derive every kernel of one arm and write ``generated/<arm>.rs`` (format: ``codegen/FORMAT.md``)."""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+
+from . import GENERATOR_VERSION
+from .algebra import Scalar
+from .base_params import BaseParams, analyse, param_names, random_states
+from .dh import DhTable, load
+from .emit_rust import emit
+from .kinematics import Symbols, transforms
+from .lagrange import lagrange_function
+from .newton_euler import forward, regressor, rnea
+
+KERNELS = ("regressor", "base_regressor", "mass_matrix", "bias", "gravity", "inverse_dynamics")
+
+
+def source_hash(toml_bytes: bytes) -> str:
+    return hashlib.sha256(f"dynid-codegen {GENERATOR_VERSION}\n".encode() + toml_bytes).hexdigest()
+
+
+@dataclass
+class Kernel:
+    name: str
+    args: list[str]  # Rust arguments before `out`
+    inputs: list[str]  # which of trig/q/dq/ddq/theta the CasADi function takes, in order
+    outputs: list[Scalar]
+    out_len: str  # Rust length expression of `out`
+
+
+@dataclass
+class Emitted:
+    name: str
+    code: str
+    mul: int
+    add: int
+
+
+def _sx(xs: list[Scalar]) -> ca.SX:
+    return ca.vertcat(*[ca.SX(x) for x in xs])
+
+
+def derive(arm: DhTable, base: BaseParams) -> tuple[Symbols, ca.SX, list[Kernel]]:
+    n = arm.dof
+    sym = Symbols.make(n)
+    theta = ca.SX.sym("theta", base.rank)
+    tf = transforms(arm, sym)
+    g = list(arm.gravity)
+    dq = [sym.dq[i] for i in range(n)]
+    ddq = [sym.ddq[i] for i in range(n)]
+    zero = [0.0] * n
+    p_star: list[Scalar] = [0.0] * (10 * n)
+    for r, col in enumerate(base.kept):
+        p_star[col] = theta[r]
+
+    full = forward(tf, dq, ddq, g)
+    Y = regressor(tf, full)
+    Yb_rows = regressor(tf, full, set(base.kept))
+    Yb = [[row[c] for c in base.kept] for row in Yb_rows]
+
+    M: list[list[Scalar]] = [[0.0] * n for _ in range(n)]
+    for k in range(n):
+        e_k: list[Scalar] = [1.0 if i == k else 0.0 for i in range(n)]
+        col = rnea(tf, forward(tf, zero, e_k, [0.0, 0.0, 0.0]), p_star)
+        for i in range(k, n):
+            M[i][k] = M[k][i] = col[i]
+
+    q_args = ["q: &[f64; DOF]"]
+    kernels = [
+        Kernel(
+            "regressor",
+            q_args + ["dq: &[f64; DOF]", "ddq: &[f64; DOF]"],
+            ["trig", "q", "dq", "ddq"],
+            [y for row in Y for y in row],
+            "DOF * NP",
+        ),
+        Kernel(
+            "base_regressor",
+            q_args + ["dq: &[f64; DOF]", "ddq: &[f64; DOF]"],
+            ["trig", "q", "dq", "ddq"],
+            [y for row in Yb for y in row],
+            "DOF * NB",
+        ),
+        Kernel(
+            "mass_matrix",
+            q_args + ["theta: &[f64; NB]"],
+            ["trig", "q", "theta"],
+            [m for row in M for m in row],
+            "DOF * DOF",
+        ),
+        Kernel(
+            "bias",
+            q_args + ["dq: &[f64; DOF]", "theta: &[f64; NB]"],
+            ["trig", "q", "dq", "theta"],
+            rnea(tf, forward(tf, dq, zero, g), p_star),
+            "DOF",
+        ),
+        Kernel(
+            "gravity",
+            q_args + ["theta: &[f64; NB]"],
+            ["trig", "q", "theta"],
+            rnea(tf, forward(tf, zero, zero, g), p_star),
+            "DOF",
+        ),
+        Kernel(
+            "inverse_dynamics",
+            q_args + ["dq: &[f64; DOF]", "ddq: &[f64; DOF]", "theta: &[f64; NB]"],
+            ["trig", "q", "dq", "ddq", "theta"],
+            rnea(tf, full, p_star),
+            "DOF",
+        ),
+    ]
+    return sym, theta, kernels
+
+
+def check_against_lagrange(arm: DhTable, sym: Symbols, Y: list[Scalar], samples: int = 4) -> float:
+    """Max |Y_NE - Y_Lagrange| / max|Y| over random states; raises if they disagree."""
+    f_ne = ca.Function("ne", [sym.trig, sym.q, sym.dq, sym.ddq], [_sx(Y)])
+    f_lg = lagrange_function(arm)
+    q, dq, ddq = random_states(arm, samples, np.random.default_rng(7))
+    worst = 0.0
+    for s in range(samples):
+        ang = q[s] + [j.theta for j in arm.joints]
+        trig = np.empty(2 * arm.dof)
+        trig[0::2], trig[1::2] = np.cos(ang), np.sin(ang)
+        a = np.array(f_ne(trig, q[s], dq[s], ddq[s])).ravel()
+        b = np.array(f_lg(q[s], dq[s], ddq[s])).reshape(-1)
+        b = np.array(f_lg(q[s], dq[s], ddq[s])).reshape(arm.dof, 10 * arm.dof).ravel()
+        worst = max(worst, float(np.max(np.abs(a - b)) / (1.0 + np.max(np.abs(b)))))
+    if worst > 1e-9:
+        raise ArithmeticError(f"{arm.name}: Newton-Euler and Lagrange regressors differ by {worst:.3e}")
+    return worst
+
+
+def emit_kernel(arm: DhTable, sym: Symbols, theta: ca.SX, k: Kernel) -> Emitted:
+    vectors = {"trig": sym.trig, "q": sym.q, "dq": sym.dq, "ddq": sym.ddq, "theta": theta}
+    out = ca.cse(_sx(k.outputs))
+    f = ca.Function(k.name, [vectors[v] for v in k.inputs], [out])
+
+    def name(inp: int, nz: int) -> str:
+        which = k.inputs[inp]
+        if which == "trig":
+            return f"{'c' if nz % 2 == 0 else 's'}{nz // 2 + 1}"
+        return f"{which}[{nz}]"
+
+    body = emit(f, name, len(k.outputs))
+    trig_joints = sorted({nz // 2 for inp, nz in body.used if k.inputs[inp] == "trig"})
+    pre = []
+    for i in trig_joints:
+        off = arm.joints[i].theta
+        arg = f"q[{i}]" if off == 0.0 else f"q[{i}] + {off!r}"
+        pre.append(f"let (s{i + 1}, c{i + 1}) = crate::trig::sin_cos({arg});")
+    sig = ", ".join(k.args + [f"out: &mut [f64; {k.out_len}]"])
+    lines = [f"#[inline]\npub fn {k.name}({sig}) {{"]
+    lines += [f"    {ln}" for ln in pre + body.lines]
+    lines.append("}")
+    return Emitted(k.name, "\n".join(lines), body.mul, body.add)
+
+
+def _str_array(xs: list[str]) -> str:
+    return "[" + ", ".join(f'"{x}"' for x in xs) + "]"
+
+
+def render(arm: DhTable, toml_name: str, digest: str, base: BaseParams, kernels: list[Emitted]) -> str:
+    n = arm.dof
+    head = [
+        f"// @generated by dynid-codegen {GENERATOR_VERSION} from arms/{toml_name} — DO NOT EDIT.",
+        f"// source-hash: {digest}",
+        f"// regenerate: cargo build (build.rs) or python -m codegen {arm.name}",
+        "//",
+        "// Operation counts (multiplications / additions):",
+    ]
+    head += [f"//   {e.name:<17} {e.mul:>6} / {e.add:<6}" for e in kernels]
+    head += ["//", "// Base parameters (theta = B p):"]
+    head += [f"//   {nm} = {ex}" for nm, ex in zip(base.names, base.exprs)]
+    body = [
+        "",
+        f'pub const NAME: &str = "{arm.name}";',
+        f"pub const DOF: usize = {n};",
+        f"pub const NP: usize = {10 * n};",
+        f"pub const NB: usize = {base.rank};",
+        f'pub const GENERATOR_VERSION: &str = "{GENERATOR_VERSION}";',
+        f'pub const SOURCE_HASH: &str = "{digest}";',
+        f"pub const PARAM_NAMES: [&str; NP] = {_str_array(param_names(n))};",
+        f"pub const BASE_PARAM_NAMES: [&str; NB] = {_str_array(base.names)};",
+        f"pub const BASE_PARAM_EXPRS: [&str; NB] = {_str_array(base.exprs)};",
+        "/// Sparse base-parameter map: `theta[row] += coef * p[col]`.",
+        f"pub const BASE_MAP: [(usize, usize, f64); {len(base.entries)}] = ["
+        + ", ".join(f"({r}, {c}, {float(v)!r})" for r, c, v in base.entries)
+        + "];",
+        "/// `(kernel, multiplications, additions)` as counted by the generator.",
+        f"pub const OP_COUNTS: [(&str, u32, u32); {len(kernels)}] = ["
+        + ", ".join(f'("{e.name}", {e.mul}, {e.add})' for e in kernels)
+        + "];",
+        "",
+    ]
+    for e in kernels:
+        body += [e.code, ""]
+    bp = ["#[inline]", "pub fn base_params(p: &[f64; NP], out: &mut [f64; NB]) {"]
+    rows: dict[int, list[str]] = {}
+    for r, c, v in base.entries:
+        rows.setdefault(r, []).append(f"p[{c}]" if v == 1.0 else f"{v!r} * p[{c}]")
+    for r in range(base.rank):
+        bp.append(f"    out[{r}] = {' + '.join(rows[r])};")
+    bp.append("}")
+    return "\n".join(head + body + bp) + "\n"
+
+
+def write_atomic(path: Path, text: str) -> bool:
+    """Write only if the content changed; temp file + rename. Returns whether it wrote."""
+    if path.exists() and path.read_text(encoding="utf-8") == text:
+        return False
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as fh:
+            fh.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+    return True
+
+
+@dataclass
+class Result:
+    arm: str
+    text: str
+    seconds: float
+    ops: list[tuple[str, int, int]]
+    nb: int
+    lagrange_error: float
+
+
+def generate(toml_path: Path) -> Result:
+    t0 = time.perf_counter()
+    arm = load(toml_path)
+    if arm.name != toml_path.stem:
+        raise ValueError(f'{toml_path}: name = "{arm.name}" must equal the file stem "{toml_path.stem}"')
+    digest = source_hash(toml_path.read_bytes())
+    base = analyse(arm)
+    sym, theta, kernels = derive(arm, base)
+    lag = check_against_lagrange(arm, sym, kernels[0].outputs)
+    emitted = [emit_kernel(arm, sym, theta, k) for k in kernels]
+    text = render(arm, toml_path.name, digest, base, emitted)
+    ops = [(e.name, e.mul, e.add) for e in emitted]
+    return Result(arm.name, text, time.perf_counter() - t0, ops, base.rank, lag)

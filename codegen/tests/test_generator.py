@@ -1,0 +1,183 @@
+"""Specifications of the generator, checked against independent oracles.
+
+Oracles: the paper's closed-form regressor of the 2-DOF arm, the Lagrange equations derived by CasADi's
+algorithmic differentiation of T - V, and identities between kernels (Y p = Yb theta = M ddq + h).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from codegen import __main__ as cli
+from codegen.base_params import analyse, random_states
+from codegen.dh import DhError, load
+from codegen.generate import _sx, derive, generate, source_hash
+from codegen.lagrange import lagrange_function
+
+ROOT = Path(__file__).resolve().parents[2]
+ARMS = sorted(p.stem for p in (ROOT / "arms").glob("*.toml"))
+
+
+def kernels_of(name: str):
+    arm = load(ROOT / "arms" / f"{name}.toml")
+    base = analyse(arm)
+    sym, theta, kernels = derive(arm, base)
+    vec = {"trig": sym.trig, "q": sym.q, "dq": sym.dq, "ddq": sym.ddq, "theta": theta}
+    fns = {k.name: ca.Function(k.name, [vec[v] for v in k.inputs], [_sx(k.outputs)]) for k in kernels}
+    return arm, base, fns
+
+
+def trig_of(arm, q):
+    ang = q + np.array([j.theta for j in arm.joints])
+    t = np.empty(2 * arm.dof)
+    t[0::2], t[1::2] = np.cos(ang), np.sin(ang)
+    return t
+
+
+def base_map(base, n):
+    B = np.zeros((base.rank, 10 * n))
+    for r, c, v in base.entries:
+        B[r, c] += v
+    return B
+
+
+def test_planar2_base_regressor_is_the_papers_phi():
+    arm, base, f = kernels_of("planar2")
+    assert base.exprs == ["ZZ1 + a1²·M2", "MX1 + a1·M2", "MY1", "ZZ2", "MX2", "MY2"]
+    a1, g = 1.0, 9.81
+    rng = np.random.default_rng(1)
+    for _ in range(50):
+        q, dq, ddq = rng.uniform(-np.pi, np.pi, 2), rng.uniform(-2, 2, 2), rng.uniform(-5, 5, 2)
+        c1, s1, c2, s2 = math.cos(q[0]), math.sin(q[0]), math.cos(q[1]), math.sin(q[1])
+        c12, s12 = math.cos(q[0] + q[1]), math.sin(q[0] + q[1])
+        phi = np.array(
+            [
+                [
+                    ddq[0],
+                    g * c1,
+                    -g * s1,
+                    ddq[0] + ddq[1],
+                    a1 * (2 * ddq[0] + ddq[1]) * c2 - a1 * (2 * dq[0] + dq[1]) * dq[1] * s2 + g * c12,
+                    -a1 * (2 * ddq[0] + ddq[1]) * s2 - a1 * (2 * dq[0] + dq[1]) * dq[1] * c2 - g * s12,
+                ],
+                [
+                    0,
+                    0,
+                    0,
+                    ddq[0] + ddq[1],
+                    a1 * ddq[0] * c2 + a1 * dq[0] ** 2 * s2 + g * c12,
+                    -a1 * ddq[0] * s2 + a1 * dq[0] ** 2 * c2 - g * s12,
+                ],
+            ]
+        )
+        yb = np.array(f["base_regressor"](trig_of(arm, q), q, dq, ddq)).reshape(2, 6)
+        assert np.allclose(yb, phi, rtol=1e-12, atol=1e-12 * np.abs(phi).max())
+
+
+@pytest.mark.parametrize("name", ARMS)
+def test_newton_euler_equals_lagrange(name):
+    arm, _, f = kernels_of(name)
+    lag = lagrange_function(arm)
+    q, dq, ddq = random_states(arm, 5, np.random.default_rng(3))
+    n = arm.dof
+    for s in range(5):
+        y_ne = np.array(f["regressor"](trig_of(arm, q[s]), q[s], dq[s], ddq[s])).reshape(n, 10 * n)
+        y_lg = np.array(lag(q[s], dq[s], ddq[s]))
+        assert np.max(np.abs(y_ne - y_lg)) <= 1e-10 * (1 + np.abs(y_lg).max())
+
+
+@pytest.mark.parametrize("name", ARMS)
+def test_kernel_identities(name):
+    """Y p = Yb (B p) = ID(B p) = M ddq + h; g = h(dq = 0); M symmetric positive definite."""
+    arm, base, f = kernels_of(name)
+    n, nb = arm.dof, base.rank
+    rng = np.random.default_rng(5)
+    B = base_map(base, n)
+    q, dq, ddq = random_states(arm, 10, rng)
+    for s in range(10):
+        p = physical_params(rng, n)
+        th = B @ p
+        t = trig_of(arm, q[s])
+        y = np.array(f["regressor"](t, q[s], dq[s], ddq[s])).reshape(n, 10 * n)
+        yb = np.array(f["base_regressor"](t, q[s], dq[s], ddq[s])).reshape(n, nb)
+        tau = y @ p
+        scale = 1 + np.abs(tau).max()
+        assert np.allclose(yb @ th, tau, atol=1e-10 * scale)
+        assert np.allclose(np.array(f["inverse_dynamics"](t, q[s], dq[s], ddq[s], th)).ravel(), tau, atol=1e-10 * scale)
+        M = np.array(f["mass_matrix"](t, q[s], th)).reshape(n, n)
+        h = np.array(f["bias"](t, q[s], dq[s], th)).ravel()
+        assert np.allclose(M @ ddq[s] + h, tau, atol=1e-10 * scale)
+        assert np.allclose(M, M.T, atol=0)
+        assert np.linalg.eigvalsh(M).min() > 0
+        g = np.array(f["gravity"](t, q[s], th)).ravel()
+        assert np.allclose(np.array(f["bias"](t, q[s], 0 * dq[s], th)).ravel(), g, atol=1e-10 * scale)
+
+
+def physical_params(rng, n):
+    """Random physically consistent link parameters about the link origins."""
+    p = []
+    for _ in range(n):
+        m = rng.uniform(0.5, 5)
+        c = rng.uniform(-0.2, 0.2, 3)
+        A = rng.normal(size=(3, 3))
+        Ic = A @ A.T * 0.05 + 0.01 * np.eye(3)
+        Io = Ic + m * (c @ c * np.eye(3) - np.outer(c, c))
+        p += [Io[0, 0], Io[0, 1], Io[0, 2], Io[1, 1], Io[1, 2], Io[2, 2], *(m * c), m]
+    return np.array(p)
+
+
+@pytest.mark.parametrize("name,rank", [("planar2", 6), ("puma560", 36), ("panda", 43), ("scara", 8)])
+def test_base_parameter_count(name, rank):
+    """Known counts: PUMA 560 without motor inertias has 36 base parameters, Panda 43."""
+    assert analyse(load(ROOT / "arms" / f"{name}.toml")).rank == rank
+
+
+def test_generation_is_deterministic_and_committed_files_are_fresh():
+    for name in ARMS:
+        path = ROOT / "arms" / f"{name}.toml"
+        text = generate(path).text
+        assert generate(path).text == text
+        assert f"source-hash: {source_hash(path.read_bytes())}" in text
+        committed = ROOT / "generated" / f"{name}.rs"
+        assert committed.read_text(encoding="utf-8") == text, f"{committed} is stale: run python -m codegen"
+
+
+def test_seven_dof_arm_generates_in_under_30_seconds():
+    t0 = time.perf_counter()
+    generate(ROOT / "arms" / "panda.toml")
+    assert time.perf_counter() - t0 < 30
+
+
+def test_puma_base_regressor_operation_budget():
+    """Issue budget: <= 800 operations (SymPyBotics emits 624 * + 397 + = 1,021)."""
+    ops = {k: (m, a) for k, m, a in generate(ROOT / "arms" / "puma560.toml").ops}
+    m, a = ops["base_regressor"]
+    assert m + a <= 800
+
+
+def test_bad_tables_are_rejected_with_the_file_named(tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text('name = "bad"\n[[joint]]\nkind = "spherical"\n')
+    with pytest.raises(DhError, match="bad.toml: joint 1: kind"):
+        load(bad)
+    bad.write_text('name = "bad"\n[[joint]]\nalpha = "90deg"\n')
+    with pytest.raises(DhError, match="alpha: expected a number"):
+        load(bad)
+
+
+def test_cli_check_mode_detects_stale_files(tmp_path, capsys):
+    arms = tmp_path / "arms"
+    out = tmp_path / "generated"
+    arms.mkdir()
+    (arms / "two.toml").write_text((ROOT / "arms" / "planar2.toml").read_text().replace('"planar2"', '"two"'))
+    assert cli.main(["--arms-dir", str(arms), "--out-dir", str(out), "--check"]) == 1
+    assert cli.main(["--arms-dir", str(arms), "--out-dir", str(out)]) == 0
+    assert cli.main(["--arms-dir", str(arms), "--out-dir", str(out), "--check"]) == 0
+    (arms / "two.toml").write_text((arms / "two.toml").read_text().replace("a = 1.0", "a = 0.5"))
+    assert cli.main(["--arms-dir", str(arms), "--out-dir", str(out), "--check"]) == 1

@@ -1,0 +1,1 @@
+//! Embeds generated kernels (work in progress).

@@ -1,0 +1,1 @@
+//! dynid: D-H table -> generated dynamics kernels -> identification (work in progress).

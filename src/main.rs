@@ -1,0 +1,3 @@
+fn main() {
+    println!("dynid: the paper reproduction is being built; see README.md");
+}
