@@ -161,9 +161,10 @@ def _format_poly(poly: Polynomial) -> tuple[str, str]:
         return parts[0]
     if all(s == "-" for s, _ in parts):
         return "-", "(" + " + ".join(t for _, t in parts) + ")"
-    body = parts[0][1] if parts[0][0] == "+" else "-" + parts[0][1]
+    parts.sort(key=lambda st: st[0] == "-")  # stable: positive terms first, e.g. (d5² − a4²)
+    body = parts[0][1]
     for s, t in parts[1:]:
-        body += f" {s} {t}"
+        body += f" {'+' if s == '+' else '−'} {t}"
     return "+", f"({body})"
 
 

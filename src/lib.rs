@@ -1,1 +1,31 @@
-//! dynid: D-H table -> generated dynamics kernels -> identification (work in progress).
+//! dynid: from a robot arm's modified Denavit–Hartenberg table to generated, unrolled dynamics
+//! kernels, and from measured or simulated data to identified dynamic parameters.
+//!
+//! Layout: [`model`] is the contract every generated arm implements, [`arms`] the registry of
+//! generated arms, [`reference`](crate::reference) the hand-written recursive Newton–Euler oracle; [`dh`],
+//! [`params`] and [`data`] load user files with errors that say where and how to fix; [`io`]
+//! writes outputs atomically; [`cli`] is the command line.
+
+pub mod arms;
+pub mod bench;
+pub mod cli;
+pub mod control;
+pub mod data;
+pub mod derivative;
+pub mod dh;
+pub mod diag;
+pub mod effects;
+pub mod excitation;
+pub mod identify;
+pub mod io;
+pub mod model;
+pub mod paper;
+pub mod params;
+pub mod reference;
+pub mod report;
+pub mod sim;
+pub mod trajectory;
+pub mod trig;
+pub mod urdf;
+
+mod tomlread;

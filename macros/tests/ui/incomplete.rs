@@ -1,0 +1,3 @@
+dynid_macros::arm!(incomplete, root = "tests/ui/fixtures");
+
+fn main() {}

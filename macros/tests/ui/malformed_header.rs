@@ -1,0 +1,3 @@
+dynid_macros::arm!(malformed, root = "tests/ui/fixtures");
+
+fn main() {}

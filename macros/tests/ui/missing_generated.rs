@@ -1,0 +1,3 @@
+dynid_macros::arm!(missing, root = "tests/ui/fixtures");
+
+fn main() {}

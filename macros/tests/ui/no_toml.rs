@@ -1,0 +1,3 @@
+dynid_macros::arm!(ghost, root = "tests/ui/fixtures");
+
+fn main() {}

@@ -1,0 +1,3 @@
+dynid_macros::arm!(notrust, root = "tests/ui/fixtures");
+
+fn main() {}

@@ -1,0 +1,3 @@
+dynid_macros::arm!(stale, root = "tests/ui/fixtures");
+
+fn main() {}

@@ -1,0 +1,139 @@
+//! `dynid bench [--arm A] [--json] [--samples N] [--pinocchio FILE --markdown FILE --svg FILE]`:
+//! quick in-process throughput of the generated kernels next to the hand-written reference, and a
+//! streaming identification of a generated 1,000,000-sample PUMA 560 log. The careful numbers come
+//! from `cargo bench`; the README table with Pinocchio measured in the same run from
+//! `scripts/bench_table.sh`, which passes the harness output with `--pinocchio`.
+
+use std::path::PathBuf;
+
+use anyhow::Result;
+
+use super::{write_output, InputError};
+use crate::arms::{resolve, ArmSource};
+use crate::bench::table::{markdown, svg, PinocchioTimes, RunInfo};
+use crate::bench::{Report, Settings, IDENTIFY_SAMPLES};
+use crate::model::Model;
+
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Measure only this arm's kernels (default: every generated arm).
+    #[arg(long)]
+    pub arm: Option<String>,
+    /// Print one JSON object instead of a table.
+    #[arg(long)]
+    pub json: bool,
+    /// Samples in the streaming PUMA 560 identification.
+    #[arg(long, default_value_t = IDENTIFY_SAMPLES)]
+    pub samples: usize,
+    /// Output of `../shared/anchors/pinocchio/run.sh` from the same run (its
+    /// `pinocchio,<model>,<algo>,<ns>` lines), for the Pinocchio columns of --markdown/--svg.
+    #[arg(long, value_name = "FILE")]
+    pub pinocchio: Option<PathBuf>,
+    /// Write the README benchmark section (Markdown table with ratios and targets) here.
+    #[arg(long, value_name = "FILE")]
+    pub markdown: Option<PathBuf>,
+    /// Write the benchmark plot (SVG) here.
+    #[arg(long, value_name = "FILE")]
+    pub svg: Option<PathBuf>,
+}
+
+pub fn run(args: &Args) -> Result<()> {
+    let arms: Vec<&'static dyn Model> = match &args.arm {
+        None => crate::arms::all().to_vec(),
+        Some(name) => match resolve(name)? {
+            ArmSource::Generated(m) => vec![m],
+            ArmSource::Table(t) => {
+                return Err(InputError(format!(
+                    "{name}: `dynid bench` measures generated kernels — copy the table to arms/{}.toml and run `cargo build` to generate them",
+                    t.name
+                ))
+                .into())
+            }
+        },
+    };
+    if args.samples == 0 {
+        return Err(InputError("--samples must be at least 1".into()).into());
+    }
+    // Read the harness output before measuring: a wrong path fails in a second, not after the run.
+    let pinocchio = match &args.pinocchio {
+        None => PinocchioTimes::default(),
+        Some(path) => {
+            let text = std::fs::read_to_string(path).map_err(|e| {
+                InputError(format!(
+                    "--pinocchio {}: cannot read the harness output: {e}",
+                    path.display()
+                ))
+            })?;
+            let times = PinocchioTimes::parse(&text);
+            if times.is_empty() {
+                return Err(InputError(format!(
+                    "--pinocchio {}: no `pinocchio,<model>,<algo>,<ns>` lines — pass the full output of ../shared/anchors/pinocchio/run.sh",
+                    path.display()
+                ))
+                .into());
+            }
+            times
+        }
+    };
+    let info = RunInfo::current();
+    let bar = indicatif::ProgressBar::new(arms.len() as u64 + 1);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} {msg}")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    let (report, ident) = crate::bench::run(&arms, &Settings::quick(), args.samples, |done| {
+        bar.set_message(done.to_string());
+        bar.inc(1);
+    })?;
+    bar.finish_and_clear();
+    if let Some(path) = &args.markdown {
+        let md = markdown(&report, &pinocchio, &info);
+        crate::io::atomic_write(path, |w| w.write_all(md.as_bytes()))?;
+    }
+    if let Some(path) = &args.svg {
+        let svg = svg(&report, &pinocchio)
+            .map_err(|e| anyhow::anyhow!("drawing the benchmark plot: {e}"))?;
+        crate::io::atomic_write(path, |w| w.write_all(svg.as_bytes()))?;
+    }
+    write_output(None, |w| {
+        if args.json {
+            serde_json::to_writer_pretty(&mut *w, &report)?;
+            return writeln!(w);
+        }
+        write_table(w, &report)?;
+        let s = &ident.solution;
+        writeln!(
+            w,
+            "  identified {} base parameters: cond(Yb, column-scaled) = {:.3e}, rms residual {:.4} N·m, max relative error {:.2e}",
+            s.theta.len(),
+            s.cond,
+            s.rms_residual,
+            ident.max_rel_error
+        )
+    })
+}
+
+fn write_table(w: &mut dyn std::io::Write, report: &Report) -> std::io::Result<()> {
+    writeln!(
+        w,
+        "{:<10} {:<17} {:>14} {:>14} {:>8}",
+        "ARM", "KERNEL", "GENERATED ns", "REFERENCE ns", "REF/GEN"
+    )?;
+    for k in &report.kernels {
+        writeln!(
+            w,
+            "{:<10} {:<17} {:>14.1} {:>14.1} {:>7.1}×",
+            k.arm,
+            k.kernel,
+            k.generated_ns,
+            k.reference_ns,
+            k.reference_ns / k.generated_ns
+        )?;
+    }
+    let i = &report.identify;
+    writeln!(
+        w,
+        "\nstreaming identification ({}, {} samples, one thread): {:.3} s, peak RSS {:.1} MB",
+        i.arm, i.samples, i.seconds, i.peak_rss_mb
+    )
+}

@@ -1,0 +1,50 @@
+//! `dynid export-urdf --arm A [--params P] [--out FILE]`: a D-H arm as a URDF (links are the D-H
+//! frames). Written atomically to `--out`, or to stdout.
+
+use std::path::PathBuf;
+
+use anyhow::Result;
+
+use super::write_output;
+use crate::arms::resolve;
+use crate::params::{InertialParams, ParamsOptions};
+
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Arm name (see `dynid arms`) or path to a D-H table (.toml).
+    #[arg(long)]
+    pub arm: String,
+    /// Inertial parameters (TOML); without it the links are massless.
+    #[arg(long)]
+    pub params: Option<PathBuf>,
+    /// Output URDF (default: stdout).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Accept physically impossible inertial parameters (with a warning).
+    #[arg(long)]
+    pub allow_nonphysical: bool,
+}
+
+pub fn run(args: &Args) -> Result<()> {
+    let table = resolve(&args.arm)?.dh_table()?;
+    let params = match &args.params {
+        Some(path) => {
+            let opts = ParamsOptions {
+                allow_nonphysical: args.allow_nonphysical,
+            };
+            let p = InertialParams::from_path(path, table.dof(), &opts)?;
+            for w in &p.warnings {
+                eprintln!("warning: {w}");
+            }
+            if !p.effects.is_empty() {
+                eprintln!(
+                    "note: [effects] are not part of a URDF's inertial data and are not exported"
+                );
+            }
+            Some(p)
+        }
+        None => None,
+    };
+    let text = crate::urdf::export(&table, params.as_ref())?;
+    write_output(args.out.as_deref(), |w| w.write_all(text.as_bytes()))
+}

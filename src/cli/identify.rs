@@ -1,0 +1,224 @@
+//! `dynid identify --arm A --data TRAIN [--data TRAIN2 ...] [--validate VAL] [--effects auto|none|LIST] [--out DIR]`:
+//! identify base parameters, find missing effects, write `report.md`, plots, `report.json` and
+//! (with `--validate`) `validation_prediction.csv`.
+//!
+//! With `--leave-one-out` every `--data` file in turn is held out for validation and the others
+//! are fitted; each fold's report goes to `DIR/heldout_<file>/` and the summary table to
+//! `DIR/leave_one_out.md` / `.json`. Everything is computed before anything is written.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result};
+
+use super::InputError;
+use crate::arms::resolve;
+use crate::data::Trajectory;
+use crate::derivative::Method;
+use crate::effects::parse_list;
+use crate::identify::{self, Config, Outcome};
+
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Arm name (see `dynid arms`) or path to a D-H table (.toml).
+    #[arg(long)]
+    pub arm: String,
+    /// Training data (CSV or .csv.gz: t, q, [dq], [ddq], tau); repeat for several files.
+    #[arg(long, required = true)]
+    pub data: Vec<PathBuf>,
+    /// Validation data (same format), judged with the fitted models.
+    #[arg(long)]
+    pub validate: Option<PathBuf>,
+    /// `auto` (search), `none` (rigid body only) or a list such as `viscous,coulomb:2`.
+    #[arg(long, default_value = "auto")]
+    pub effects: String,
+    /// Output directory.
+    #[arg(long, default_value = "identify_out")]
+    pub out: PathBuf,
+    /// Low-pass cut-off in Hz, or `auto` (held-out error scan over spectrum-based candidates).
+    #[arg(long, default_value = "auto")]
+    pub cutoff: String,
+    /// Derivative estimator.
+    #[arg(long, value_enum, default_value = "butterworth")]
+    pub derivative: DerivativeArg,
+    /// Differentiate q even when the file has a dq column.
+    #[arg(long)]
+    pub ignore_file_velocity: bool,
+    /// Rotate through the --data files, holding each out for validation in turn.
+    #[arg(long)]
+    pub leave_one_out: bool,
+}
+
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+pub enum DerivativeArg {
+    /// Zero-phase 4th-order Butterworth + central differences.
+    Butterworth,
+    /// Savitzky–Golay (quintic) matched to the cut-off.
+    Savgol,
+}
+
+fn command_line(args: &Args) -> String {
+    let mut c = format!("dynid identify --arm {}", args.arm);
+    for d in &args.data {
+        let _ = write!(c, " --data {}", d.display());
+    }
+    if let Some(v) = &args.validate {
+        let _ = write!(c, " --validate {}", v.display());
+    }
+    let _ = write!(
+        c,
+        " --effects {} --cutoff {} --out {}",
+        args.effects,
+        args.cutoff,
+        args.out.display()
+    );
+    if matches!(args.derivative, DerivativeArg::Savgol) {
+        c += " --derivative savgol";
+    }
+    if args.ignore_file_velocity {
+        c += " --ignore-file-velocity";
+    }
+    if args.leave_one_out {
+        c += " --leave-one-out";
+    }
+    c
+}
+
+pub fn run(args: &Args) -> Result<()> {
+    let arm = resolve(&args.arm)?;
+    let dof = arm.dof();
+    let effects = parse_list(&args.effects, dof).map_err(InputError)?;
+    let cutoff_hz = match args.cutoff.trim() {
+        "auto" => None,
+        s => match s.parse::<f64>() {
+            Ok(f) if f.is_finite() && f > 0.0 => Some(f),
+            _ => {
+                return Err(InputError(format!(
+                    "--cutoff: `{s}` is not a positive number of Hz or `auto`"
+                ))
+                .into())
+            }
+        },
+    };
+    let cfg = Config {
+        derivative: crate::derivative::Options {
+            method: match args.derivative {
+                DerivativeArg::Butterworth => Method::Butterworth,
+                DerivativeArg::Savgol => Method::SavitzkyGolay,
+            },
+            cutoff_hz,
+        },
+        file_velocity: !args.ignore_file_velocity,
+        effects,
+        ..Config::default()
+    };
+    let load = |p: &Path| Trajectory::from_path(p, Some(dof));
+    let train: Vec<Trajectory> = args
+        .data
+        .iter()
+        .map(|p| load(p))
+        .collect::<Result<_, _>>()?;
+    let command = command_line(args);
+    let bad = |e: identify::IdentifyError| -> anyhow::Error {
+        match e {
+            identify::IdentifyError::Data(d) => d.into(),
+            other => InputError(other.to_string()).into(),
+        }
+    };
+    if args.leave_one_out {
+        if train.len() < 2 || args.validate.is_some() {
+            return Err(InputError(
+                "--leave-one-out needs at least two --data files and no --validate".into(),
+            )
+            .into());
+        }
+        let outs = identify::leave_one_out(&arm, train, &cfg).map_err(bad)?;
+        return write_loo(&args.out, &outs, &command);
+    }
+    let val = args.validate.as_deref().map(load).transpose()?;
+    let outcome = identify::run(&arm, train, val, &cfg).map_err(bad)?;
+    let files =
+        crate::report::write(&args.out, &outcome, &command).context("writing the report")?;
+    print_summary(&outcome);
+    eprintln!("wrote {} files to {}", files.len(), args.out.display());
+    Ok(())
+}
+
+fn print_summary(o: &Outcome) {
+    let found: Vec<String> = o.selection.steps.iter().map(|s| s.label.clone()).collect();
+    println!(
+        "effects found: {}",
+        if found.is_empty() {
+            "none".into()
+        } else {
+            found.join(", ")
+        }
+    );
+    let show = |label: &str, r: &identify::ModelResult| {
+        let v = r.validation.as_ref().map_or(String::new(), |v| {
+            format!(", validation {:.2} %", 100.0 * v.overall)
+        });
+        println!("{label}: training {:.2} %{v}", 100.0 * r.train.overall);
+    };
+    show("before (rigid)", &o.before);
+    show("after", &o.after);
+}
+
+fn write_loo(dir: &Path, outs: &[Outcome], command: &str) -> Result<()> {
+    let mut md = String::from("# Leave-one-out identification\n\n");
+    let _ = writeln!(md, "Reproduce: `{command}`\n");
+    let _ = writeln!(
+        md,
+        "| held-out file | effects found | cut-off (Hz) | validation before | validation after |"
+    );
+    let _ = writeln!(md, "|---|---|---|---|---|");
+    let mut rows = Vec::new();
+    let mut reports = Vec::new();
+    for o in outs {
+        let v = o
+            .validate
+            .as_ref()
+            .map(|f| f.file.clone())
+            .unwrap_or_default();
+        let found: Vec<String> = o.selection.steps.iter().map(|s| s.label.clone()).collect();
+        let (b, a) = (
+            o.before.validation.as_ref().map_or(f64::NAN, |e| e.overall),
+            o.after.validation.as_ref().map_or(f64::NAN, |e| e.overall),
+        );
+        let fc = o.train.first().map_or(f64::NAN, |f| f.derivative.cutoff_hz);
+        let _ = writeln!(
+            md,
+            "| `{v}` | {} | {fc:.2} | {:.2} % | {:.2} % |",
+            found.join(", "),
+            100.0 * b,
+            100.0 * a
+        );
+        rows.push(serde_json::json!({"heldout": v, "effects_found": found, "cutoff_hz": fc, "validation_before": o.before.validation, "validation_after": o.after.validation, "steps": o.steps}));
+        let stem = Path::new(&v)
+            .file_name()
+            .map(|s| {
+                s.to_string_lossy()
+                    .replace(".csv.gz", "")
+                    .replace(".csv", "")
+            })
+            .unwrap_or_default();
+        reports.push((dir.join(format!("heldout_{stem}")), o));
+    }
+    let pooled = identify::pooled_validation(outs);
+    if let Some((b, a)) = &pooled {
+        let _ = writeln!(md, "\nPooled over all held-out files (‖τ̂−τ‖/‖τ‖ against the measured torque): before {:.2} %, after {:.2} % (per joint before {:?}, after {:?}).", 100.0 * b.overall, 100.0 * a.overall, b.per_joint, a.per_joint);
+    }
+    let json = serde_json::json!({"folds": rows, "pooled": pooled.map(|(b, a)| serde_json::json!({"before": b, "after": a})), "command": command});
+    for (d, o) in &reports {
+        crate::report::write(d, o, command).context("writing a fold's report")?;
+    }
+    crate::io::atomic_write(&dir.join("leave_one_out.md"), |w| {
+        w.write_all(md.as_bytes())
+    })?;
+    let text = serde_json::to_string_pretty(&json).unwrap_or_default();
+    crate::io::atomic_write(&dir.join("leave_one_out.json"), |w| {
+        w.write_all(text.as_bytes())
+    })?;
+    print!("{md}");
+    Ok(())
+}

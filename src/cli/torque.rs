@@ -1,0 +1,115 @@
+//! `dynid torque --arm A --params P --data D [--out F]`: inverse dynamics along a trajectory.
+//!
+//! A registered arm uses its generated kernels (`base_params(p)`, then `inverse_dynamics`); a
+//! path to a D-H table uses the reference recursive Newton–Euler. Effects from the parameter
+//! file (`[effects]`) are added per joint. Output: CSV `t,tau1..taun`, atomically to `--out` or
+//! to stdout. Everything is loaded and checked before anything is written.
+
+use std::path::PathBuf;
+
+use anyhow::Result;
+
+use super::write_output;
+use crate::arms::{resolve, ArmSource};
+use crate::data::{write_header, write_row, Trajectory};
+use crate::params::{InertialParams, ParamsOptions};
+use crate::reference::RefModel;
+
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Arm name (see `dynid arms`) or path to a D-H table (.toml).
+    #[arg(long)]
+    pub arm: String,
+    /// Inertial parameters (TOML: one [[link]] per joint, optional [effects]).
+    #[arg(long)]
+    pub params: PathBuf,
+    /// Trajectory CSV (or .csv.gz) with t, q, dq and ddq columns.
+    #[arg(long)]
+    pub data: PathBuf,
+    /// Output CSV (default: stdout).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Accept physically impossible inertial parameters (with a warning).
+    #[arg(long)]
+    pub allow_nonphysical: bool,
+}
+
+pub fn run(args: &Args) -> Result<()> {
+    let arm = resolve(&args.arm)?;
+    let dof = arm.dof();
+    let opts = ParamsOptions {
+        allow_nonphysical: args.allow_nonphysical,
+    };
+    let params = InertialParams::from_path(&args.params, dof, &opts)?;
+    for w in &params.warnings {
+        eprintln!("warning: {w}");
+    }
+    let traj = Trajectory::from_path(&args.data, Some(dof))?;
+    traj.require(true, true, false, "inverse dynamics")?;
+
+    let tau = torques(&arm, &params, &traj);
+    let header = std::iter::once("t".to_string())
+        .chain((1..=dof).map(|j| format!("tau{j}")))
+        .collect::<Vec<_>>();
+    write_output(args.out.as_deref(), |w| {
+        write_header(w, &header)?;
+        let mut row = vec![0.0; dof + 1];
+        for k in 0..traj.len() {
+            row[0] = traj.t[k];
+            row[1..].copy_from_slice(&tau[k * dof..(k + 1) * dof]);
+            write_row(w, &row)?;
+        }
+        Ok(())
+    })
+}
+
+/// Joint torques for every sample (row-major), effects included.
+fn torques(arm: &ArmSource, params: &InertialParams, traj: &Trajectory) -> Vec<f64> {
+    let dof = traj.dof;
+    let p = params.full_vector();
+    let mut tau = vec![0.0; traj.len() * dof];
+    let (Some(dq), Some(ddq)) = (traj.dq.as_ref(), traj.ddq.as_ref()) else {
+        return tau;
+    };
+    let rows = |k: usize| (k * dof)..((k + 1) * dof);
+    match arm {
+        ArmSource::Generated(m) => {
+            let mut theta = vec![0.0; m.nb()];
+            m.base_params(&p, &mut theta);
+            for k in 0..traj.len() {
+                let r = rows(k);
+                m.inverse_dynamics(
+                    &traj.q[r.clone()],
+                    &dq[r.clone()],
+                    &ddq[r.clone()],
+                    &theta,
+                    &mut tau[r],
+                );
+            }
+        }
+        ArmSource::Table(table) => {
+            let model = RefModel::new(table);
+            let mut ws = model.workspace();
+            for k in 0..traj.len() {
+                let r = rows(k);
+                model.inverse_dynamics(
+                    &mut ws,
+                    &traj.q[r.clone()],
+                    &dq[r.clone()],
+                    &ddq[r.clone()],
+                    &p,
+                    &mut tau[r],
+                );
+            }
+        }
+    }
+    if !params.effects.is_empty() {
+        for k in 0..traj.len() {
+            for j in 0..dof {
+                let i = k * dof + j;
+                tau[i] += params.effects.torque(j, dq[i], ddq[i]);
+            }
+        }
+    }
+    tau
+}

@@ -1,0 +1,1395 @@
+//! Identification from measured or simulated data: base-parameter least squares, the residual →
+//! effect loop (see [`crate::effects`]) and everything a report needs.
+//!
+//! Pipeline of [`run`] (every step is reported):
+//! 1. **Derivatives** per file ([`crate::derivative::estimate`]): uneven sampling is resampled to
+//!    a uniform grid, q is low-passed with a zero-phase filter whose cut-off is chosen from the
+//!    spectrum, q̇/q̈ come from central differences (a q̇ column in the file is used, filtered,
+//!    and differentiated for q̈). Files with both q̇ and q̈ are used as given.
+//! 2. **Regression** with *parallel filtering*: on each file's uniform grid the rows
+//!    `[Yb(q,q̇,q̈) | effect columns | τ]` are filtered column by column with the *same* zero-phase
+//!    filter (also τ), in overlapping chunks so memory does not grow with the log length, and
+//!    folded into incremental QR factors ([`ls::Accumulator`]) per joint and per time block.
+//!    Filter edges are dropped. Several files are fitted together, each filtered on its own.
+//! 3. **Weighted least squares**: each joint's rows are weighted by the inverse of its residual
+//!    standard deviation (two passes), solved by QR over the stacked factors. Parameter standard
+//!    deviations come from a block jackknife over the time blocks (honest under the residual
+//!    autocorrelation that filtering creates), reported also as %σ = 100·σ/|θ|. No physical
+//!    consistency constraints are imposed (plain least squares); the condition number of the
+//!    weighted regressor is reported.
+//! 4. **Errors** are computed against the torque *as measured in the file* (unfiltered), at the
+//!    file's own sample times, with the states interpolated from the estimate: relative RMS per
+//!    joint `‖τ̂ⱼ−τⱼ‖/‖τⱼ‖` and overall `‖τ̂−τ‖/‖τ‖`, for the declared (rigid) and the augmented
+//!    model, on training and validation data.
+
+pub mod base;
+pub mod ls;
+pub mod synth;
+
+use std::sync::Arc;
+
+use nalgebra::{DMatrix, DVector};
+use serde::Serialize;
+
+use crate::arms::ArmSource;
+use crate::data::Trajectory;
+use crate::derivative::{self, Butterworth, DerivativeReport, Estimate, Filter, SavGol};
+use crate::effects::{self, Effect, EffectsSpec, Rules, Scales, Selection, Term};
+use base::BaseModel;
+use ls::Accumulator;
+
+/// Fewest samples per file.
+pub const MIN_SAMPLES: usize = 64;
+
+/// Why identification could not run. Nothing is written when this is returned.
+#[derive(Debug, thiserror::Error)]
+pub enum IdentifyError {
+    #[error(transparent)]
+    Data(#[from] crate::data::DataError),
+    #[error("{file}: {source}")]
+    Derivative {
+        file: String,
+        source: derivative::DerivativeError,
+    },
+    #[error("{file}: no torque columns — identification needs measured torques tau1..tau{dof}")]
+    NoTorque { file: String, dof: usize },
+    #[error("{file}: the file is for {found} joints but the arm has {dof}")]
+    Dof {
+        file: String,
+        found: usize,
+        dof: usize,
+    },
+    #[error(transparent)]
+    Rank(#[from] RankError),
+    #[error("{0}")]
+    Effects(String),
+}
+
+/// Rank-deficient excitation: some parameters cannot be told apart with the given data.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RankError {
+    pub files: String,
+    /// The parameters whose columns depend on earlier ones, e.g. `MX2`, `coulomb1`.
+    pub params: Vec<String>,
+    /// Which joints hardly move, if any (starts with a space).
+    pub hint: String,
+}
+
+impl std::fmt::Display for RankError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let names = self
+            .params
+            .iter()
+            .map(|p| format!("`{p}`"))
+            .collect::<Vec<_>>()
+            .join(", ");
+        write!(
+            f,
+            "rank-deficient excitation in {}: {} cannot be identified (each is a combination of the other columns in this data){} — record a trajectory that moves every joint through a wide range with changing velocity",
+            self.files, names, self.hint
+        )
+    }
+}
+
+impl std::error::Error for RankError {}
+
+/// Options of [`run`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct Config {
+    pub derivative: derivative::Options,
+    /// Use a q̇ column of the file (filtered) instead of differentiating q.
+    pub file_velocity: bool,
+    pub effects: EffectsSpec,
+    pub rules: Rules,
+    /// Number of time blocks over all training files (for held-out tests and the jackknife).
+    pub blocks: usize,
+}
+
+impl Default for Config {
+    fn default() -> Self {
+        Config {
+            derivative: derivative::Options::default(),
+            file_velocity: true,
+            effects: EffectsSpec::Auto,
+            rules: Rules::default(),
+            blocks: 20,
+        }
+    }
+}
+
+/// One data file after derivative estimation.
+#[derive(Debug, Clone)]
+pub struct Prepared {
+    pub name: String,
+    pub traj: Arc<Trajectory>,
+    pub est: Estimate,
+    /// Grid samples used for the regression (filter edges dropped).
+    pub keep: (usize, usize),
+    /// Raw samples used for errors and predictions.
+    pub raw_keep: (usize, usize),
+}
+
+impl Prepared {
+    /// Estimates derivatives of a loaded trajectory (which must have torques) with the options
+    /// of `cfg` (cut-off automatic from the spectrum unless given).
+    pub fn new(traj: Trajectory, cfg: &Config) -> Result<Self, IdentifyError> {
+        Self::with_cutoff(Arc::new(traj), cfg, cfg.derivative.cutoff_hz, None)
+    }
+
+    /// As [`Prepared::new`] with the cut-off `fc` (`None` = automatic) and filter edges dropped
+    /// as for a cut-off of `edge_fc` (default `fc`; a common value keeps the samples used the
+    /// same when cut-offs are compared).
+    pub fn with_cutoff(
+        traj: Arc<Trajectory>,
+        cfg: &Config,
+        fc: Option<f64>,
+        edge_fc: Option<f64>,
+    ) -> Result<Self, IdentifyError> {
+        let name = traj.source.clone();
+        let dof = traj.dof;
+        if traj.tau.is_none() {
+            return Err(IdentifyError::NoTorque { file: name, dof });
+        }
+        traj.require_samples(MIN_SAMPLES, "identification")?;
+        let n = traj.len();
+        let col = |v: &Vec<f64>, j: usize| -> Vec<f64> { (0..n).map(|k| v[k * dof + j]).collect() };
+        let q: Vec<Vec<f64>> = (0..dof).map(|j| col(&traj.q, j)).collect();
+        let dq: Option<Vec<Vec<f64>>> = traj
+            .dq
+            .as_ref()
+            .map(|d| (0..dof).map(|j| col(d, j)).collect());
+        let derr = |source| IdentifyError::Derivative {
+            file: name.clone(),
+            source,
+        };
+        let opts = derivative::Options {
+            cutoff_hz: fc,
+            ..cfg.derivative
+        };
+        let est = match (&traj.dq, &traj.ddq) {
+            (Some(d), Some(dd)) => {
+                let dq = (0..dof).map(|j| col(d, j)).collect::<Vec<_>>();
+                let ddq = (0..dof).map(|j| col(dd, j)).collect::<Vec<_>>();
+                given_derivatives(&traj.t, q, dq, ddq, &opts).map_err(derr)?
+            }
+            _ => {
+                let dq_in = if cfg.file_velocity {
+                    dq.as_deref()
+                } else {
+                    None
+                };
+                derivative::estimate(&traj.t, &q, dq_in, &opts).map_err(derr)?
+            }
+        };
+        let g = est.grid;
+        let efc = edge_fc
+            .unwrap_or(est.report.cutoff_hz)
+            .min(est.report.cutoff_hz);
+        let edge = ((0.5 / efc / g.dt).ceil() as usize).min(g.n / 40);
+        let keep = (edge, g.n - edge);
+        let (t0, t1) = (g.time(keep.0), g.time(keep.1 - 1));
+        let lo = traj.t.iter().position(|&t| t >= t0 - 1e-12).unwrap_or(0);
+        let hi = traj
+            .t
+            .iter()
+            .rposition(|&t| t <= t1 + 1e-12)
+            .map_or(n, |k| k + 1);
+        Ok(Prepared {
+            name,
+            traj,
+            est,
+            keep,
+            raw_keep: (lo, hi.max(lo)),
+        })
+    }
+
+    /// Block of grid sample `k` when the kept range is split into `nblocks`.
+    fn block_of(&self, k: usize, nblocks: usize) -> usize {
+        let span = (self.keep.1 - self.keep.0).max(1);
+        ((k.saturating_sub(self.keep.0)) * nblocks / span).min(nblocks - 1)
+    }
+
+    pub fn dof(&self) -> usize {
+        self.traj.dof
+    }
+}
+
+/// Derivatives given in the file: used as they are (resampled if the grid is uneven); the
+/// filter is still built (for parallel filtering of τ and the columns).
+fn given_derivatives(
+    t: &[f64],
+    q: Vec<Vec<f64>>,
+    dq: Vec<Vec<f64>>,
+    ddq: Vec<Vec<f64>>,
+    opts: &derivative::Options,
+) -> Result<Estimate, derivative::DerivativeError> {
+    let sampling = derivative::Sampling::of(t)?;
+    let grid = derivative::grid_for(t, &sampling);
+    let fs = 1.0 / grid.dt;
+    let on = |x: &Vec<f64>| {
+        if sampling.uniform {
+            x.clone()
+        } else {
+            derivative::resample_linear(t, x, &grid)
+        }
+    };
+    let (q, dq, ddq): (Vec<_>, Vec<_>, Vec<_>) = (
+        q.iter().map(on).collect(),
+        dq.iter().map(on).collect(),
+        ddq.iter().map(on).collect(),
+    );
+    let (fc, per, auto) = match opts.cutoff_hz {
+        Some(f) => (f, Vec::new(), false),
+        None => {
+            let refs: Vec<&[f64]> = q.iter().map(|c| c.as_slice()).collect();
+            let (f, p) = derivative::auto_cutoff(&refs, fs);
+            (f, p, true)
+        }
+    };
+    let filter = match opts.method {
+        derivative::Method::Butterworth => Filter::Butterworth(Butterworth::lowpass(4, fc, fs)?),
+        derivative::Method::SavitzkyGolay => Filter::SavGol(SavGol::matched(fc, fs)?),
+    };
+    let report = DerivativeReport {
+        method: opts.method,
+        filter: filter.as_zero_phase().describe(),
+        cutoff_hz: fc,
+        cutoff_auto: auto,
+        per_channel: per,
+        sampling,
+        resampled: !sampling.uniform,
+        dq_source: "file (as given)".into(),
+        ddq_source: "file (as given)".into(),
+        fs_hz: fs,
+    };
+    Ok(Estimate {
+        grid,
+        q,
+        dq,
+        ddq,
+        filter,
+        report,
+    })
+}
+
+/// Which columns the regression has: base parameters, then effect terms.
+#[derive(Debug, Clone)]
+pub struct Layout {
+    pub dof: usize,
+    pub nb: usize,
+    pub base_names: Vec<String>,
+    pub base_exprs: Vec<String>,
+    pub terms: Vec<Term>,
+    pub scales: Vec<Scales>,
+}
+
+impl Layout {
+    /// Regressor columns (without the target).
+    pub fn ncols(&self) -> usize {
+        self.nb + self.terms.len()
+    }
+
+    /// Column index of a term.
+    pub fn col(&self, t: &Term) -> Option<usize> {
+        self.terms.iter().position(|x| x == t).map(|i| self.nb + i)
+    }
+
+    /// Name of a column.
+    pub fn col_name(&self, c: usize) -> String {
+        if c < self.nb {
+            self.base_names[c].clone()
+        } else {
+            self.terms[c - self.nb].label()
+        }
+    }
+}
+
+/// Fills regression rows for one state: `out[j * ncols + c]`.
+struct Rows<'a> {
+    base: &'a BaseModel,
+    layout: &'a Layout,
+    scratch: base::Scratch,
+    yb: Vec<f64>,
+}
+
+impl<'a> Rows<'a> {
+    fn new(base: &'a BaseModel, layout: &'a Layout) -> Self {
+        Rows {
+            base,
+            layout,
+            scratch: base.scratch(),
+            yb: vec![0.0; layout.dof * layout.nb],
+        }
+    }
+
+    fn fill(&mut self, q: &[f64], dq: &[f64], ddq: &[f64], out: &mut [f64]) {
+        let (n, nb, nc) = (self.layout.dof, self.layout.nb, self.layout.ncols());
+        self.base.eval(&mut self.scratch, q, dq, ddq, &mut self.yb);
+        out.fill(0.0);
+        for j in 0..n {
+            out[j * nc..j * nc + nb].copy_from_slice(&self.yb[j * nb..(j + 1) * nb]);
+        }
+        for (i, t) in self.layout.terms.iter().enumerate() {
+            let j = t.joint;
+            out[j * nc + nb + i] = t.effect.column(q[j], dq[j], ddq[j], &self.layout.scales[j]);
+        }
+    }
+}
+
+/// Parallel-filtered regression of one file into `[block][joint]` accumulators.
+fn accumulate_fit(
+    p: &Prepared,
+    base: &BaseModel,
+    layout: &Layout,
+    nblocks: usize,
+) -> Vec<Vec<Accumulator>> {
+    let (n, nc) = (layout.dof, layout.ncols());
+    let g = p.est.grid;
+    let filt = p.est.filter.as_zero_phase();
+    let reach = filt.reach();
+    let core = (4 * reach).max(8192);
+    let mut accs: Vec<Vec<Accumulator>> = (0..nblocks)
+        .map(|_| (0..n).map(|_| Accumulator::new(nc + 1)).collect())
+        .collect();
+    let (k0, k1) = p.keep;
+    let tau = grid_tau(p);
+    let mut rows = Rows::new(base, layout);
+    let mut buf = vec![0.0; n * nc];
+    let (mut q, mut dq, mut ddq) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+    let mut a = k0;
+    while a < k1 {
+        let b = (a + core).min(k1);
+        let lo = a.saturating_sub(reach);
+        let hi = (b + reach).min(g.n);
+        let w = hi - lo;
+        // Column-major window: cols[(j * (nc + 1) + c) * w + (k - lo)].
+        let mut cols = vec![0.0; n * (nc + 1) * w];
+        for k in lo..hi {
+            for j in 0..n {
+                q[j] = p.est.q[j][k];
+                dq[j] = p.est.dq[j][k];
+                ddq[j] = p.est.ddq[j][k];
+            }
+            rows.fill(&q, &dq, &ddq, &mut buf);
+            for j in 0..n {
+                for c in 0..nc {
+                    cols[(j * (nc + 1) + c) * w + (k - lo)] = buf[j * nc + c];
+                }
+                cols[(j * (nc + 1) + nc) * w + (k - lo)] = tau[j][k];
+            }
+        }
+        for ch in cols.chunks_mut(w) {
+            if ch.iter().any(|v| *v != 0.0) {
+                filt.apply(ch, lo == 0, hi == g.n);
+            }
+        }
+        let mut row = vec![0.0; nc + 1];
+        for k in a..b {
+            let blk = p.block_of(k, nblocks);
+            for j in 0..n {
+                for c in 0..=nc {
+                    row[c] = cols[(j * (nc + 1) + c) * w + (k - lo)];
+                }
+                accs[blk][j].push(&row);
+            }
+        }
+        a = b;
+    }
+    for blk in &mut accs {
+        for acc in blk {
+            acc.finish();
+        }
+    }
+    accs
+}
+
+/// Measured torque on the file's uniform grid (resampled linearly if the sampling is uneven).
+fn grid_tau(p: &Prepared) -> Vec<Vec<f64>> {
+    let (n, len) = (p.dof(), p.traj.len());
+    let tau = p.traj.tau.as_deref().unwrap_or(&[]);
+    (0..n)
+        .map(|j| {
+            let x: Vec<f64> = (0..len).map(|k| tau[k * n + j]).collect();
+            if p.est.report.resampled {
+                derivative::resample_linear(&p.traj.t, &x, &p.est.grid)
+            } else {
+                x
+            }
+        })
+        .collect()
+}
+
+/// Calls `f(k, q, dq, ddq, tau)` for each raw sample used, states interpolated at its time.
+fn for_raw_samples(
+    p: &Prepared,
+    stride: usize,
+    mut f: impl FnMut(usize, &[f64], &[f64], &[f64], &[f64]),
+) {
+    let n = p.dof();
+    let tau = p.traj.tau.as_deref().unwrap_or(&[]);
+    let (mut q, mut dq, mut ddq) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+    let uniform = !p.est.report.resampled && p.est.grid.n == p.traj.len();
+    for k in (p.raw_keep.0..p.raw_keep.1).step_by(stride.max(1)) {
+        for j in 0..n {
+            if uniform {
+                (q[j], dq[j], ddq[j]) = (p.est.q[j][k], p.est.dq[j][k], p.est.ddq[j][k]);
+            } else {
+                (q[j], dq[j], ddq[j]) = p.est.at(j, p.traj.t[k]);
+            }
+        }
+        f(k, &q, &dq, &ddq, &tau[k * n..(k + 1) * n]);
+    }
+}
+
+/// Unfiltered regression against the measured torque, `[block][joint]` (for errors).
+fn accumulate_raw(
+    p: &Prepared,
+    base: &BaseModel,
+    layout: &Layout,
+    nblocks: usize,
+) -> Vec<Vec<Accumulator>> {
+    let (n, nc) = (layout.dof, layout.ncols());
+    let mut accs: Vec<Vec<Accumulator>> = (0..nblocks)
+        .map(|_| (0..n).map(|_| Accumulator::new(nc + 1)).collect())
+        .collect();
+    let mut rows = Rows::new(base, layout);
+    let mut buf = vec![0.0; n * nc];
+    let mut row = vec![0.0; nc + 1];
+    let g = p.est.grid;
+    for_raw_samples(p, 1, |k, q, dq, ddq, tau| {
+        rows.fill(q, dq, ddq, &mut buf);
+        let kg = (((p.traj.t[k] - g.t0) / g.dt).round().max(0.0) as usize).min(g.n - 1);
+        let blk = p.block_of(kg, nblocks);
+        for j in 0..n {
+            row[..nc].copy_from_slice(&buf[j * nc..(j + 1) * nc]);
+            row[nc] = tau[j];
+            accs[blk][j].push(&row);
+        }
+    });
+    for b in &mut accs {
+        for a in b {
+            a.finish();
+        }
+    }
+    accs
+}
+
+/// Merges `[block][joint]` accumulators into `[joint]`.
+fn merge_blocks(blocks: &[Vec<Accumulator>], n: usize, cols: usize) -> Vec<Accumulator> {
+    let mut out: Vec<Accumulator> = (0..n).map(|_| Accumulator::new(cols)).collect();
+    for b in blocks {
+        for j in 0..n {
+            out[j].merge(&b[j]);
+        }
+    }
+    out
+}
+
+/// The accumulated least-squares problem of a training set (all candidate columns present).
+#[derive(Debug, Clone)]
+pub struct Problem {
+    pub layout: Layout,
+    /// `[block][joint]`, parallel-filtered.
+    blocks: Vec<Vec<Accumulator>>,
+    /// `[joint]`, all blocks.
+    total: Vec<Accumulator>,
+    /// `[block][joint]`: factor of all blocks but this one.
+    loo: Vec<Vec<DMatrix<f64>>>,
+    /// `[block][joint]`, unfiltered rows against the measured torque.
+    raw: Vec<Vec<Accumulator>>,
+    files: String,
+}
+
+impl Problem {
+    fn new(
+        layout: Layout,
+        blocks: Vec<Vec<Accumulator>>,
+        raw: Vec<Vec<Accumulator>>,
+        files: String,
+    ) -> Self {
+        let n = layout.dof;
+        let nbk = blocks.len();
+        let nc = layout.ncols() + 1;
+        let total = merge_blocks(&blocks, n, nc);
+        // Leave-one-block-out factors from prefix and suffix merges: O(blocks) QR updates.
+        let mut loo = vec![Vec::with_capacity(n); nbk];
+        #[allow(clippy::needless_range_loop)]
+        for j in 0..n {
+            let mut prefix = vec![Accumulator::new(nc)];
+            for b in 0..nbk {
+                let mut a = prefix[b].clone();
+                a.merge(&blocks[b][j]);
+                prefix.push(a);
+            }
+            let mut suffix = vec![Accumulator::new(nc); nbk + 1];
+            for b in (0..nbk).rev() {
+                let mut a = suffix[b + 1].clone();
+                a.merge(&blocks[b][j]);
+                suffix[b] = a;
+            }
+            for b in 0..nbk {
+                let mut a = prefix[b].clone();
+                a.merge(&suffix[b + 1]);
+                loo[b].push(a.r().clone());
+            }
+        }
+        Problem {
+            layout,
+            blocks,
+            total,
+            loo,
+            raw,
+            files,
+        }
+    }
+
+    /// Builds the problem of `train` (blocks proportional to each file's length, ≥ 2 per file).
+    pub fn build(
+        base: &BaseModel,
+        layout: Layout,
+        train: &[Prepared],
+        target_blocks: usize,
+    ) -> Self {
+        let total_rows: usize = train.iter().map(|p| p.keep.1 - p.keep.0).sum();
+        let (mut blocks, mut raw) = (Vec::new(), Vec::new());
+        for p in train {
+            let share = (target_blocks as f64 * (p.keep.1 - p.keep.0) as f64
+                / total_rows.max(1) as f64)
+                .round() as usize;
+            blocks.extend(accumulate_fit(p, base, &layout, share.max(2)));
+            raw.extend(accumulate_raw(p, base, &layout, share.max(2)));
+        }
+        let files = train
+            .iter()
+            .map(|p| p.name.as_str())
+            .collect::<Vec<_>>()
+            .join(", ");
+        Problem::new(layout, blocks, raw, files)
+    }
+
+    /// Held-out relative RMS error against the *measured* torque: each block predicted by the
+    /// fit on the other blocks, `‖τ̂−τ‖/‖τ‖` pooled over blocks and joints.
+    pub fn cv_raw(&self, subset: &[usize], w: &[f64]) -> Result<f64, RankError> {
+        let (mut sse, mut tss) = (0.0, 0.0);
+        for b in 0..self.blocks() {
+            let f: Vec<(&DMatrix<f64>, f64)> =
+                self.loo[b].iter().zip(w).map(|(r, &w)| (r, w)).collect();
+            let fit = ls::solve(&f, subset).map_err(|e| self.rank_error(&e.dependent))?;
+            for a in &self.raw[b] {
+                sse += a.sse(subset, &fit.x);
+                tss += a.target_ss();
+            }
+        }
+        Ok((sse / tss).sqrt())
+    }
+
+    pub fn blocks(&self) -> usize {
+        self.blocks.len()
+    }
+
+    /// Sum of squares of joint `j`'s (filtered) torque over the training set.
+    pub fn target_ss(&self, j: usize) -> f64 {
+        self.total[j].target_ss()
+    }
+
+    /// Base columns plus the columns of `terms`.
+    pub fn subset(&self, terms: &[Term]) -> Vec<usize> {
+        let mut s: Vec<usize> = (0..self.layout.nb).collect();
+        s.extend(terms.iter().filter_map(|t| self.layout.col(t)));
+        s
+    }
+
+    fn rank_error(&self, dependent: &[usize]) -> RankError {
+        RankError {
+            files: self.files.clone(),
+            params: dependent.iter().map(|&c| self.layout.col_name(c)).collect(),
+            hint: String::new(),
+        }
+    }
+
+    /// Weighted fit over the full training set.
+    pub fn fit(&self, subset: &[usize], w: &[f64]) -> Result<ls::Fit, RankError> {
+        let f: Vec<(&DMatrix<f64>, f64)> =
+            self.total.iter().zip(w).map(|(a, &w)| (a.r(), w)).collect();
+        ls::solve(&f, subset).map_err(|e| self.rank_error(&e.dependent))
+    }
+
+    /// Per-joint weights `1/σⱼ` from the residual of the model (OLS, then one WLS pass).
+    pub fn weights(&self, subset: &[usize]) -> Result<Vec<f64>, RankError> {
+        let n = self.layout.dof;
+        let mut w = vec![1.0; n];
+        for _ in 0..2 {
+            let fit = self.fit(subset, &w)?;
+            w = (0..n)
+                .map(|j| {
+                    let a = &self.total[j];
+                    let rows = a.rows().max(1) as f64;
+                    let scale = (a.target_ss() / rows).sqrt();
+                    let s = (a.sse(subset, &fit.x) / rows)
+                        .sqrt()
+                        .max(1e-9 * scale)
+                        .max(1e-300);
+                    1.0 / s
+                })
+                .collect();
+        }
+        Ok(w)
+    }
+
+    /// Held-out weighted SSE `[block][joint]` of leave-one-block-out refits.
+    pub fn cv_sse(&self, subset: &[usize], w: &[f64]) -> Result<Vec<Vec<f64>>, RankError> {
+        let n = self.layout.dof;
+        let mut out = Vec::with_capacity(self.blocks());
+        for b in 0..self.blocks() {
+            let f: Vec<(&DMatrix<f64>, f64)> =
+                self.loo[b].iter().zip(w).map(|(r, &w)| (r, w)).collect();
+            let fit = ls::solve(&f, subset).map_err(|e| self.rank_error(&e.dependent))?;
+            out.push(
+                (0..n)
+                    .map(|j| w[j] * w[j] * self.blocks[b][j].sse(subset, &fit.x))
+                    .collect(),
+            );
+        }
+        Ok(out)
+    }
+
+    /// Parameter vectors of the leave-one-block-out fits (for the jackknife).
+    fn loo_fits(&self, subset: &[usize], w: &[f64]) -> Vec<Vec<f64>> {
+        (0..self.blocks())
+            .filter_map(|b| {
+                let f: Vec<(&DMatrix<f64>, f64)> =
+                    self.loo[b].iter().zip(w).map(|(r, &w)| (r, w)).collect();
+                ls::solve(&f, subset).ok().map(|fit| fit.x)
+            })
+            .collect()
+    }
+
+    /// Partial correlation, on the term's joint, of the torque residual with the term's column,
+    /// both taken orthogonal to the model's columns.
+    pub fn partial_corr(&self, subset: &[usize], term: Term) -> Option<f64> {
+        let c = self.layout.col(&term)?;
+        let r = self.total[term.joint].r();
+        let t = r.ncols() - 1;
+        let a = DMatrix::from_fn(r.nrows(), subset.len(), |i, k| r[(i, subset[k])]);
+        let svd = a.clone().svd(true, true);
+        let resid = |v: DVector<f64>| -> Option<DVector<f64>> {
+            let x = svd.solve(&v, 1e-10).ok()?;
+            Some(v - &a * x)
+        };
+        let rt = resid(r.column(t).into_owned())?;
+        let rc = resid(r.column(c).into_owned())?;
+        let d = rt.norm() * rc.norm();
+        (d > 0.0).then(|| rt.dot(&rc) / d)
+    }
+}
+
+/// Relative RMS errors against measured torque.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Errors {
+    pub per_joint: Vec<f64>,
+    pub overall: f64,
+}
+
+fn errors(accs: &[&[Accumulator]], subset: &[usize], x: &[f64]) -> Errors {
+    let n = accs.first().map_or(0, |a| a.len());
+    let mut sse = vec![0.0; n];
+    let mut tss = vec![0.0; n];
+    for file in accs {
+        for (j, a) in file.iter().enumerate() {
+            sse[j] += a.sse(subset, x);
+            tss[j] += a.target_ss();
+        }
+    }
+    let per_joint = (0..n)
+        .map(|j| {
+            if tss[j] > 0.0 {
+                (sse[j] / tss[j]).sqrt()
+            } else {
+                f64::NAN
+            }
+        })
+        .collect();
+    let overall = (sse.iter().sum::<f64>() / tss.iter().sum::<f64>()).sqrt();
+    Errors { per_joint, overall }
+}
+
+/// One identified parameter.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Estimated {
+    pub name: String,
+    /// Grouped expression (base parameters) or effect description.
+    pub expression: String,
+    pub value: f64,
+    /// Standard deviation (block jackknife).
+    pub std: f64,
+    /// `100 · std / |value|`.
+    pub rel_std_percent: f64,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub unit: Option<String>,
+}
+
+/// A fitted model and its errors.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ModelResult {
+    pub terms: Vec<String>,
+    pub train: Errors,
+    pub validation: Option<Errors>,
+    /// Held-out error of leave-one-block-out refits on the (filtered) training data.
+    pub heldout_rms: f64,
+    #[serde(skip)]
+    pub subset: Vec<usize>,
+    #[serde(skip)]
+    pub x: Vec<f64>,
+}
+
+/// Summary of one data file.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FileInfo {
+    pub file: String,
+    pub rows: usize,
+    pub rows_used: usize,
+    pub duration_s: f64,
+    pub derivative: DerivativeReport,
+}
+
+impl FileInfo {
+    fn of(p: &Prepared) -> Self {
+        let t = &p.traj.t;
+        FileInfo {
+            file: p.name.clone(),
+            rows: p.traj.len(),
+            rows_used: p.raw_keep.1 - p.raw_keep.0,
+            duration_s: t[t.len() - 1] - t[0],
+            derivative: p.est.report.clone(),
+        }
+    }
+}
+
+/// `(velocity, residual)` points before and after.
+pub type BeforeAfter = (Vec<(f64, f64)>, Vec<(f64, f64)>);
+
+/// Effects merged with base parameters, and the base parameters they merge into.
+type Merged = Vec<(Term, Vec<String>)>;
+
+/// Plot data: per joint, (velocity, residual) of the training data before and after.
+#[derive(Debug, Clone, Default)]
+pub struct Series {
+    pub resid_vs_vel: Vec<BeforeAfter>,
+    /// Validation: per joint, (t, measured, before, after).
+    pub validation: Vec<Vec<(f64, f64, f64, f64)>>,
+}
+
+/// One row of `validation_prediction.csv`.
+#[derive(Debug, Clone)]
+pub struct PredictionRow {
+    pub t: f64,
+    pub tau: Vec<f64>,
+    pub before: Vec<f64>,
+    pub after: Vec<f64>,
+}
+
+/// A row of the rigid → +effect → … table.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct StepRow {
+    pub model: String,
+    pub added: Option<String>,
+    pub train: Errors,
+    pub heldout_rms: f64,
+    pub validation: Option<Errors>,
+}
+
+/// Everything [`run`] found.
+#[derive(Debug, Clone, Serialize)]
+pub struct Outcome {
+    pub arm: String,
+    pub dof: usize,
+    pub base_source: String,
+    pub train: Vec<FileInfo>,
+    pub validate: Option<FileInfo>,
+    pub effects_mode: String,
+    pub theta: Vec<Estimated>,
+    pub effects: Vec<(Term, Estimated)>,
+    pub selection: Selection,
+    /// Effects merged with rigid-body parameters for every motion (not identifiable).
+    pub merged: Vec<(String, Vec<String>)>,
+    pub before: ModelResult,
+    pub after: ModelResult,
+    pub steps: Vec<StepRow>,
+    pub cond: f64,
+    pub cond_scaled: f64,
+    pub sigma: Vec<f64>,
+    pub blocks: usize,
+    pub scales: Vec<Scales>,
+    /// Cut-offs tried by the automatic choice and their held-out errors (empty if fixed).
+    pub cutoff_scan: Vec<CutoffTrial>,
+    #[serde(skip)]
+    pub series: Series,
+    #[serde(skip)]
+    pub predictions: Option<Vec<PredictionRow>>,
+}
+
+/// Identifies `arm` from `train` files, validating on `validate` if given (see the module docs).
+pub fn run(
+    arm: &ArmSource,
+    train: Vec<Trajectory>,
+    validate: Option<Trajectory>,
+    cfg: &Config,
+) -> Result<Outcome, IdentifyError> {
+    let base = BaseModel::for_arm(arm);
+    let table = arm.dh_table().ok();
+    let train: Vec<Arc<Trajectory>> = train.into_iter().map(Arc::new).collect();
+    for t in &train {
+        check_dof(t, &base)?;
+    }
+    if let Some(v) = &validate {
+        check_dof(v, &base)?;
+    }
+    let mut cache = PrepCache::default();
+    let (fc, scan) = choose_cutoff(&base, table.as_ref(), &train, cfg, &mut cache)?;
+    let preps = cache.get_all(&train, cfg, fc)?;
+    let val = match validate {
+        Some(v) => Some(Prepared::with_cutoff(
+            Arc::new(v),
+            cfg,
+            fc.or(Some(preps[0].est.report.cutoff_hz)),
+            None,
+        )?),
+        None => None,
+    };
+    let mut out = run_prepared(arm.name(), &base, table.as_ref(), &preps, val.as_ref(), cfg)?;
+    out.cutoff_scan = scan;
+    Ok(out)
+}
+
+fn check_dof(t: &Trajectory, base: &BaseModel) -> Result<(), IdentifyError> {
+    if t.dof != base.dof() {
+        return Err(IdentifyError::Dof {
+            file: t.source.clone(),
+            found: t.dof,
+            dof: base.dof(),
+        });
+    }
+    Ok(())
+}
+
+/// Prepared files per (file, cut-off), so cut-off scans and leave-one-out studies reuse them.
+#[derive(Debug, Default)]
+pub struct PrepCache {
+    map: Vec<(usize, u64, Prepared)>,
+}
+
+impl PrepCache {
+    fn get(
+        &mut self,
+        t: &Arc<Trajectory>,
+        cfg: &Config,
+        fc: Option<f64>,
+        edge_fc: Option<f64>,
+    ) -> Result<Prepared, IdentifyError> {
+        let key = (
+            Arc::as_ptr(t) as usize,
+            fc.map_or(0, f64::to_bits) ^ edge_fc.map_or(1, f64::to_bits).rotate_left(17),
+        );
+        if let Some((_, _, p)) = self.map.iter().find(|(a, b, _)| (*a, *b) == key) {
+            return Ok(p.clone());
+        }
+        let p = Prepared::with_cutoff(t.clone(), cfg, fc, edge_fc)?;
+        self.map.push((key.0, key.1, p.clone()));
+        Ok(p)
+    }
+
+    fn get_all(
+        &mut self,
+        ts: &[Arc<Trajectory>],
+        cfg: &Config,
+        fc: Option<f64>,
+    ) -> Result<Vec<Prepared>, IdentifyError> {
+        ts.iter().map(|t| self.get(t, cfg, fc, None)).collect()
+    }
+}
+
+/// One point of the cut-off scan.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CutoffTrial {
+    pub cutoff_hz: f64,
+    /// Held-out relative RMS error against the measured torque (leave-one-block-out).
+    pub heldout_error: f64,
+}
+
+/// The automatic cut-off: the spectrum gives the motion band `f_m` (largest over files and
+/// joints, see [`derivative::auto_cutoff`]); cut-offs `f_m · 2^(k/2)`, k = −2..7, below the
+/// noise edge and 0.2·fs are tried, and the one with the smallest held-out error against the
+/// measured torque wins (rigid model plus every candidate effect, leave-one-block-out, the same
+/// samples for every cut-off). Too low a cut-off distorts the motion; too high a one lets noise
+/// and vibration into q̈, which biases least squares towards zero — the scan sees both.
+/// Returns `None` (keep the spectral rule) when a cut-off is given or only one is possible.
+pub fn choose_cutoff(
+    base: &BaseModel,
+    table: Option<&crate::dh::DhTable>,
+    train: &[Arc<Trajectory>],
+    cfg: &Config,
+    cache: &mut PrepCache,
+) -> Result<(Option<f64>, Vec<CutoffTrial>), IdentifyError> {
+    if cfg.derivative.cutoff_hz.is_some() {
+        return Ok((cfg.derivative.cutoff_hz, Vec::new()));
+    }
+    let first = cache.get_all(train, cfg, None)?;
+    let (mut band, mut cap) = (0.0f64, f64::INFINITY);
+    for p in &first {
+        let fs = p.est.report.fs_hz;
+        cap = cap.min(0.2 * fs);
+        for c in &p.est.report.per_channel {
+            band = band.max(c.motion_band_hz);
+            cap = cap.min(1.25 * c.noise_edge_hz.max(c.motion_band_hz));
+        }
+    }
+    if band.is_nan() || band <= 0.0 {
+        return Ok((None, Vec::new()));
+    }
+    let grid: Vec<f64> = (-2..=7)
+        .map(|k| band * 2f64.powf(k as f64 / 2.0))
+        .filter(|&f| f <= cap)
+        .collect();
+    if grid.len() < 2 {
+        return Ok((None, Vec::new()));
+    }
+    let edge_fc = grid[0];
+    let layout = make_layout(base, table, &first, cfg).0;
+    let all: Vec<Term> = layout.terms.clone();
+    let mut trials = Vec::new();
+    let mut best: Option<(f64, f64)> = None;
+    for &fc in &grid {
+        let preps: Vec<Prepared> = train
+            .iter()
+            .map(|t| cache.get(t, cfg, Some(fc), Some(edge_fc)))
+            .collect::<Result<_, _>>()?;
+        let problem = Problem::build(base, layout.clone(), &preps, cfg.blocks);
+        let subset = problem.subset(&all);
+        let Ok(w) = problem.weights(&subset) else {
+            continue;
+        };
+        let Ok(e) = problem.cv_raw(&subset, &w) else {
+            continue;
+        };
+        trials.push(CutoffTrial {
+            cutoff_hz: fc,
+            heldout_error: e,
+        });
+        if best.map_or(true, |(_, b)| e < b) {
+            best = Some((fc, e));
+        }
+    }
+    Ok((best.map(|b| b.0), trials))
+}
+
+/// The column layout for `train`: base parameters, then the effect terms (declared and searched,
+/// minus those structurally merged with the base), with friction scales from the data.
+fn make_layout(
+    base: &BaseModel,
+    table: Option<&crate::dh::DhTable>,
+    train: &[Prepared],
+    cfg: &Config,
+) -> (Layout, Vec<Term>, Vec<Term>, Merged) {
+    let n = base.dof();
+    let scales: Vec<Scales> = (0..n)
+        .map(|j| {
+            let (mut s, mut c) = (0.0, 0usize);
+            for p in train {
+                for k in p.keep.0..p.keep.1 {
+                    s += p.est.dq[j][k].powi(2);
+                    c += 1;
+                }
+            }
+            Scales::from_rms_velocity((s / c.max(1) as f64).sqrt())
+        })
+        .collect();
+    let (declared, searched): (Vec<Term>, Vec<Term>) = match &cfg.effects {
+        EffectsSpec::Auto => (
+            Vec::new(),
+            Effect::ALL
+                .iter()
+                .flat_map(|&e| {
+                    (0..n).map(move |j| Term {
+                        effect: e,
+                        joint: j,
+                    })
+                })
+                .collect(),
+        ),
+        EffectsSpec::Fixed(t) => (t.clone(), Vec::new()),
+    };
+    let names = base.names();
+    let merged: Vec<(Term, Vec<String>)> = match table {
+        Some(tab) => {
+            let states = base::random_states(tab, 40, 11);
+            let mut s = base.scratch();
+            let all: Vec<Term> = declared.iter().chain(&searched).copied().collect();
+            effects::structural_merges(
+                &all,
+                base.nb(),
+                n,
+                &states,
+                |q, dq, ddq, out| base.eval(&mut s, q, dq, ddq, out),
+                &names,
+            )
+        }
+        None => Vec::new(),
+    };
+    let is_merged = |t: &Term| merged.iter().any(|(m, _)| m == t);
+    let declared: Vec<Term> = declared.into_iter().filter(|t| !is_merged(t)).collect();
+    let searched: Vec<Term> = searched.into_iter().filter(|t| !is_merged(t)).collect();
+    let mut terms: Vec<Term> = declared.iter().chain(&searched).copied().collect();
+    terms.sort();
+    terms.dedup();
+    let layout = Layout {
+        dof: n,
+        nb: base.nb(),
+        base_names: names,
+        base_exprs: base.exprs(),
+        terms,
+        scales,
+    };
+    (layout, declared, searched, merged)
+}
+
+/// [`run`] on files already prepared (so studies can rotate files without redoing derivatives).
+pub fn run_prepared(
+    arm: &str,
+    base: &BaseModel,
+    table: Option<&crate::dh::DhTable>,
+    train: &[Prepared],
+    val: Option<&Prepared>,
+    cfg: &Config,
+) -> Result<Outcome, IdentifyError> {
+    let n = base.dof();
+    let (layout, declared, searched, merged) = make_layout(base, table, train, cfg);
+    let names = layout.base_names.clone();
+    let scales = layout.scales.clone();
+    let problem = Problem::build(base, layout.clone(), train, cfg.blocks);
+    let raw_train: Vec<Accumulator> = merge_blocks(&problem.raw, n, layout.ncols() + 1);
+    let raw_val: Option<Vec<Accumulator>> =
+        val.map(|p| merge_blocks(&accumulate_raw(p, base, &layout, 1), n, layout.ncols() + 1));
+
+    // Declared (rigid) model first: its rank is the excitation check.
+    let rigid = problem.subset(&[]);
+    problem.weights(&rigid).map_err(|e| with_hint(e, train))?;
+    let selection = match &cfg.effects {
+        EffectsSpec::Auto => effects::select(&problem, &declared, &searched, &cfg.rules)?,
+        EffectsSpec::Fixed(_) => Selection {
+            steps: Vec::new(),
+            terms: declared.clone(),
+            stopped_on: None,
+            collinear: Vec::new(),
+        },
+    };
+    let model_result = |terms: &[Term]| -> Result<(ModelResult, Vec<f64>, ls::Fit), IdentifyError> {
+        let subset = problem.subset(terms);
+        let w = problem.weights(&subset).map_err(|e| with_hint(e, train))?;
+        let fit = problem.fit(&subset, &w).map_err(|e| with_hint(e, train))?;
+        let heldout = problem
+            .cv_raw(&subset, &w)
+            .map_err(|e| with_hint(e, train))?;
+        let r = ModelResult {
+            terms: terms.iter().map(Term::label).collect(),
+            train: errors(&[raw_train.as_slice()], &subset, &fit.x),
+            validation: raw_val
+                .as_ref()
+                .map(|v| errors(&[v.as_slice()], &subset, &fit.x)),
+            heldout_rms: heldout,
+            subset,
+            x: fit.x.clone(),
+        };
+        Ok((r, w, fit))
+    };
+    let (before, _, _) = model_result(&[])?;
+    let (after, w, fit) = model_result(&selection.terms)?;
+
+    // rigid → +declared → +each added effect.
+    let mut steps = vec![StepRow {
+        model: "rigid".into(),
+        added: None,
+        train: before.train.clone(),
+        heldout_rms: before.heldout_rms,
+        validation: before.validation.clone(),
+    }];
+    let mut added_steps: Vec<Vec<Term>> = Vec::new();
+    if !declared.is_empty() {
+        added_steps.push(declared.clone());
+    }
+    for s in &selection.steps {
+        added_steps.push(vec![s.added]);
+    }
+    let mut acc_terms: Vec<Term> = Vec::new();
+    for add in &added_steps {
+        acc_terms.extend(add.iter().copied());
+        let (m, _, _) = model_result(&acc_terms)?;
+        steps.push(StepRow {
+            model: format!(
+                "rigid + {}",
+                acc_terms
+                    .iter()
+                    .map(Term::label)
+                    .collect::<Vec<_>>()
+                    .join(" + ")
+            ),
+            added: Some(add.iter().map(Term::label).collect::<Vec<_>>().join(", ")),
+            train: m.train,
+            heldout_rms: m.heldout_rms,
+            validation: m.validation,
+        });
+    }
+
+    // Jackknife standard deviations over the blocks.
+    let loo = problem.loo_fits(&after.subset, &w);
+    let nb_ = loo.len() as f64;
+    let std: Vec<f64> = (0..after.x.len())
+        .map(|k| {
+            if loo.len() < 2 {
+                return f64::NAN;
+            }
+            let mean = loo.iter().map(|x| x[k]).sum::<f64>() / nb_;
+            ((nb_ - 1.0) / nb_ * loo.iter().map(|x| (x[k] - mean).powi(2)).sum::<f64>()).sqrt()
+        })
+        .collect();
+    let est = |k: usize, name: String, expression: String, unit: Option<String>| Estimated {
+        name,
+        expression,
+        value: after.x[k],
+        std: std[k],
+        rel_std_percent: if after.x[k] != 0.0 {
+            100.0 * std[k] / after.x[k].abs()
+        } else {
+            f64::INFINITY
+        },
+        unit,
+    };
+    let theta: Vec<Estimated> = (0..layout.nb)
+        .map(|k| est(k, names[k].clone(), layout.base_exprs[k].clone(), None))
+        .collect();
+    let effects_est: Vec<(Term, Estimated)> = selection
+        .terms
+        .iter()
+        .enumerate()
+        .map(|(i, t)| {
+            let k = layout.nb + i;
+            (
+                *t,
+                est(
+                    k,
+                    t.label(),
+                    format!("{} on joint {}", t.effect.name(), t.joint + 1),
+                    Some(t.effect.unit().to_string()),
+                ),
+            )
+        })
+        .collect();
+
+    let series = make_series(base, &layout, train, val, &before, &after);
+    let predictions = val.map(|p| predictions(base, &layout, p, &before, &after));
+    let sigma = w.iter().map(|w| 1.0 / w).collect();
+    Ok(Outcome {
+        arm: arm.to_string(),
+        dof: n,
+        base_source: base.source().to_string(),
+        train: train.iter().map(FileInfo::of).collect(),
+        validate: val.map(FileInfo::of),
+        effects_mode: match &cfg.effects {
+            EffectsSpec::Auto => "auto".into(),
+            EffectsSpec::Fixed(t) if t.is_empty() => "none".into(),
+            EffectsSpec::Fixed(t) => t.iter().map(Term::label).collect::<Vec<_>>().join(","),
+        },
+        theta,
+        effects: effects_est,
+        selection,
+        merged: merged.iter().map(|(t, w)| (t.label(), w.clone())).collect(),
+        before,
+        after,
+        steps,
+        cond: fit.cond,
+        cond_scaled: fit.singular.first().copied().unwrap_or(f64::NAN)
+            / fit.singular.last().copied().unwrap_or(f64::NAN),
+        sigma,
+        blocks: problem.blocks(),
+        scales,
+        cutoff_scan: Vec::new(),
+        series,
+        predictions,
+    })
+}
+
+/// Adds which joints hardly move to a rank error.
+fn with_hint(mut e: RankError, train: &[Prepared]) -> RankError {
+    let Some(p0) = train.first() else { return e };
+    let mut hints = Vec::new();
+    for j in 0..p0.dof() {
+        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+        for p in train {
+            for k in p.keep.0..p.keep.1 {
+                lo = lo.min(p.est.q[j][k]);
+                hi = hi.max(p.est.q[j][k]);
+            }
+        }
+        if hi - lo < 1e-3 {
+            hints.push(format!(
+                "joint {} does not move (q{} range {:.2e})",
+                j + 1,
+                j + 1,
+                hi - lo
+            ));
+        }
+    }
+    if !hints.is_empty() {
+        e.hint = format!(" ({})", hints.join("; "));
+    }
+    e
+}
+
+#[allow(clippy::too_many_arguments)]
+fn predict_row(
+    rows: &mut Rows,
+    layout: &Layout,
+    q: &[f64],
+    dq: &[f64],
+    ddq: &[f64],
+    buf: &mut [f64],
+    m: &ModelResult,
+    out: &mut [f64],
+) {
+    let nc = layout.ncols();
+    rows.fill(q, dq, ddq, buf);
+    for (j, o) in out.iter_mut().enumerate() {
+        *o = m
+            .subset
+            .iter()
+            .zip(&m.x)
+            .map(|(&c, x)| buf[j * nc + c] * x)
+            .sum();
+    }
+}
+
+fn make_series(
+    base: &BaseModel,
+    layout: &Layout,
+    train: &[Prepared],
+    val: Option<&Prepared>,
+    before: &ModelResult,
+    after: &ModelResult,
+) -> Series {
+    let n = layout.dof;
+    let total: usize = train.iter().map(|p| p.raw_keep.1 - p.raw_keep.0).sum();
+    let stride = total.div_ceil(3000).max(1);
+    let mut rows = Rows::new(base, layout);
+    let mut buf = vec![0.0; n * layout.ncols()];
+    let (mut pb, mut pa) = (vec![0.0; n], vec![0.0; n]);
+    let mut rv: Vec<BeforeAfter> = vec![(Vec::new(), Vec::new()); n];
+    for p in train {
+        for_raw_samples(p, stride, |_, q, dq, ddq, tau| {
+            predict_row(&mut rows, layout, q, dq, ddq, &mut buf, before, &mut pb);
+            predict_row(&mut rows, layout, q, dq, ddq, &mut buf, after, &mut pa);
+            for j in 0..n {
+                rv[j].0.push((dq[j], tau[j] - pb[j]));
+                rv[j].1.push((dq[j], tau[j] - pa[j]));
+            }
+        });
+    }
+    let mut validation = vec![Vec::new(); n];
+    if let Some(p) = val {
+        let stride = (p.raw_keep.1 - p.raw_keep.0).div_ceil(4000).max(1);
+        for_raw_samples(p, stride, |k, q, dq, ddq, tau| {
+            predict_row(&mut rows, layout, q, dq, ddq, &mut buf, before, &mut pb);
+            predict_row(&mut rows, layout, q, dq, ddq, &mut buf, after, &mut pa);
+            for j in 0..n {
+                validation[j].push((p.traj.t[k], tau[j], pb[j], pa[j]));
+            }
+        });
+    }
+    Series {
+        resid_vs_vel: rv,
+        validation,
+    }
+}
+
+fn predictions(
+    base: &BaseModel,
+    layout: &Layout,
+    p: &Prepared,
+    before: &ModelResult,
+    after: &ModelResult,
+) -> Vec<PredictionRow> {
+    let n = layout.dof;
+    let mut rows = Rows::new(base, layout);
+    let mut buf = vec![0.0; n * layout.ncols()];
+    let mut out = Vec::with_capacity(p.raw_keep.1 - p.raw_keep.0);
+    for_raw_samples(p, 1, |k, q, dq, ddq, tau| {
+        let (mut b, mut a) = (vec![0.0; n], vec![0.0; n]);
+        predict_row(&mut rows, layout, q, dq, ddq, &mut buf, before, &mut b);
+        predict_row(&mut rows, layout, q, dq, ddq, &mut buf, after, &mut a);
+        out.push(PredictionRow {
+            t: p.traj.t[k],
+            tau: tau.to_vec(),
+            before: b,
+            after: a,
+        });
+    });
+    out
+}
+
+/// Leave-one-file-out study: each file in turn is the validation file, the others the training
+/// set (cut-off chosen on the training files only). Returns one outcome per file, in order.
+pub fn leave_one_out(
+    arm: &ArmSource,
+    files: Vec<Trajectory>,
+    cfg: &Config,
+) -> Result<Vec<Outcome>, IdentifyError> {
+    let base = BaseModel::for_arm(arm);
+    let table = arm.dh_table().ok();
+    let files: Vec<Arc<Trajectory>> = files.into_iter().map(Arc::new).collect();
+    for t in &files {
+        check_dof(t, &base)?;
+    }
+    let mut cache = PrepCache::default();
+    let mut out = Vec::new();
+    for k in 0..files.len() {
+        let train: Vec<Arc<Trajectory>> = files
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| *i != k)
+            .map(|(_, p)| p.clone())
+            .collect();
+        let (fc, scan) = choose_cutoff(&base, table.as_ref(), &train, cfg, &mut cache)?;
+        let preps = cache.get_all(&train, cfg, fc)?;
+        let val = cache.get(
+            &files[k],
+            cfg,
+            fc.or(Some(preps[0].est.report.cutoff_hz)),
+            None,
+        )?;
+        let mut o = run_prepared(arm.name(), &base, table.as_ref(), &preps, Some(&val), cfg)?;
+        o.cutoff_scan = scan;
+        out.push(o);
+    }
+    Ok(out)
+}
+
+/// Pooled validation error over a leave-one-out study: `‖τ̂−τ‖/‖τ‖` over all held-out files,
+/// per joint and overall, for the `before` and `after` models.
+pub fn pooled_validation(outcomes: &[Outcome]) -> Option<(Errors, Errors)> {
+    let n = outcomes.first()?.dof;
+    let mut acc = [vec![0.0; n], vec![0.0; n]];
+    let mut tss = vec![0.0; n];
+    for o in outcomes {
+        let p = o.predictions.as_ref()?;
+        for r in p {
+            for j in 0..n {
+                acc[0][j] += (r.before[j] - r.tau[j]).powi(2);
+                acc[1][j] += (r.after[j] - r.tau[j]).powi(2);
+                tss[j] += r.tau[j].powi(2);
+            }
+        }
+    }
+    let mk = |s: &Vec<f64>| Errors {
+        per_joint: (0..n).map(|j| (s[j] / tss[j]).sqrt()).collect(),
+        overall: (s.iter().sum::<f64>() / tss.iter().sum::<f64>()).sqrt(),
+    };
+    Some((mk(&acc[0]), mk(&acc[1])))
+}

@@ -1,0 +1,444 @@
+//! Inertial parameters (`--params file.toml`) → the full parameter vector `p`.
+//!
+//! One `[[link]]` per link with `m`, `com = [x, y, z]` (link frame, m) and either
+//! `inertia_com` or `inertia_origin = [ixx, ixy, ixz, iyy, iyz, izz]` (kg·m²; the off-diagonal
+//! entries are those of the inertia *tensor*, i.e. `ixy = −∫xy dm`, as in URDF). An optional
+//! `[effects]` table holds per-joint arrays ([`KNOWN_EFFECTS`]).
+//!
+//! `p` follows [`crate::model::PARAM_ORDER`]: per link `XX, XY, XZ, YY, YZ, ZZ, MX, MY, MZ, M`
+//! about the link-frame origin (`XX… = inertia_com + parallel-axis term`, `MX… = m·com`).
+//!
+//! **Massless links.** A link may be written as just `m = 0.0` (its `com` and inertias default to
+//! zero): it contributes nothing (a virtual link). A zero-mass link with non-zero inertia is not a
+//! rigid body (inertia needs mass); such data (e.g. PUMA link 1 with `m = 0, Izz = 0.35` in
+//! common tables) is reported as non-physical, so it needs `allow_nonphysical` — or better, give
+//! the link a mass and a physically shaped inertia.
+//!
+//! **Physical consistency** (checked on the inertia about the centre of mass): `m ≥ 0`, the
+//! tensor positive semidefinite and its principal moments satisfying the triangle inequality
+//! (`I1 + I2 ≥ I3`). With `allow_nonphysical` (option or top-level key) violations become
+//! [`InertialParams::warnings`] instead of errors. Non-finite numbers are always errors.
+//!
+//! ```
+//! use dynid::params::{InertialParams, ParamsOptions};
+//! let text = "[[link]]\nm = 2.0\ncom = [0.5, 0.0, 0.0]\ninertia_com = [0.0, 0.0, 0.0, 0.1, 0.0, 0.1]\n";
+//! let params = InertialParams::from_str(text, "one.toml", 1, &ParamsOptions::default())?;
+//! let p = params.full_vector();
+//! assert_eq!(p[5], 0.1 + 2.0 * 0.25); // ZZ about the origin: parallel-axis theorem
+//! assert_eq!(p[6], 1.0); // MX = m·x
+//! # Ok::<(), dynid::params::ParamsError>(())
+//! ```
+
+use std::fmt;
+use std::path::Path;
+
+use nalgebra::{Matrix3, SymmetricEigen};
+
+use crate::diag::{did_you_mean, list, Location, TomlProblem};
+use crate::tomlread::{Fail, Src, TableView};
+
+/// Names of the per-joint effects an `[effects]` table may hold.
+pub const KNOWN_EFFECTS: [&str; 4] = ["viscous", "coulomb", "armature", "offset"];
+
+const TOP_KEYS: [&str; 3] = ["link", "effects", "allow_nonphysical"];
+const LINK_KEYS: [&str; 5] = ["m", "com", "inertia_com", "inertia_origin", "name"];
+
+/// Loader options.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct ParamsOptions {
+    /// Turn physical-consistency errors into warnings (e.g. for identified parameters).
+    pub allow_nonphysical: bool,
+}
+
+/// Inertial parameters of one link.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LinkInertia {
+    /// Optional label.
+    pub name: Option<String>,
+    /// Mass (kg).
+    pub m: f64,
+    /// Centre of mass in the link frame (m).
+    pub com: [f64; 3],
+    /// Inertia tensor about the centre of mass, `[ixx, ixy, ixz, iyy, iyz, izz]`.
+    pub inertia_com: [f64; 6],
+    /// Inertia tensor about the link-frame origin, same layout.
+    pub inertia_origin: [f64; 6],
+}
+
+impl LinkInertia {
+    /// This link's 10 parameters in [`crate::model::PARAM_ORDER`].
+    pub fn standard_params(&self) -> [f64; 10] {
+        let [xx, xy, xz, yy, yz, zz] = self.inertia_origin;
+        let [x, y, z] = self.com;
+        let m = self.m;
+        [xx, xy, xz, yy, yz, zz, m * x, m * y, m * z, m]
+    }
+}
+
+/// Per-joint effects (each array has one entry per joint), applied by [`Effects::torque`].
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Effects {
+    /// Viscous friction `Fv`: `τ += Fv·q̇`.
+    pub viscous: Option<Vec<f64>>,
+    /// Coulomb friction `Fc`: `τ += Fc·sign(q̇)` (sign(0) = 0).
+    pub coulomb: Option<Vec<f64>>,
+    /// Armature (rotor) inertia `Ia`: `τ += Ia·q̈`.
+    pub armature: Option<Vec<f64>>,
+    /// Constant torque offset: `τ += τ0`.
+    pub offset: Option<Vec<f64>>,
+}
+
+impl Effects {
+    /// True when no effect is given.
+    pub fn is_empty(&self) -> bool {
+        self.viscous.is_none()
+            && self.coulomb.is_none()
+            && self.armature.is_none()
+            && self.offset.is_none()
+    }
+
+    /// Torque of all effects at joint `j` for velocity `dq` and acceleration `ddq`.
+    pub fn torque(&self, j: usize, dq: f64, ddq: f64) -> f64 {
+        let get = |v: &Option<Vec<f64>>| v.as_ref().map_or(0.0, |v| v[j]);
+        let sign = if dq > 0.0 {
+            1.0
+        } else if dq < 0.0 {
+            -1.0
+        } else {
+            0.0
+        };
+        get(&self.viscous) * dq
+            + get(&self.coulomb) * sign
+            + get(&self.armature) * ddq
+            + get(&self.offset)
+    }
+}
+
+/// A parameter file: links and effects, validated against the arm's DOF.
+#[derive(Debug, Clone)]
+pub struct InertialParams {
+    pub links: Vec<LinkInertia>,
+    pub effects: Effects,
+    /// Physical-consistency violations accepted because of `allow_nonphysical`.
+    pub warnings: Vec<ParamsError>,
+}
+
+/// A parameter file that cannot be used, with where and how to fix it.
+#[derive(Debug, thiserror::Error)]
+#[error("{loc}: {kind}")]
+pub struct ParamsError {
+    pub loc: Location,
+    /// Boxed: errors travel through `Result`s of hot-ish loader code; keep them small.
+    pub kind: Box<ParamsErrorKind>,
+}
+
+// `std::io::Error` is not `Clone`; warnings never hold one, so clone through its message.
+impl Clone for ParamsError {
+    fn clone(&self) -> Self {
+        let kind = match &*self.kind {
+            ParamsErrorKind::Io(e) => {
+                ParamsErrorKind::Io(std::io::Error::new(e.kind(), e.to_string()))
+            }
+            ParamsErrorKind::Toml(p) => ParamsErrorKind::Toml(p.clone()),
+            ParamsErrorKind::LinkCount { expected, found } => ParamsErrorKind::LinkCount {
+                expected: *expected,
+                found: *found,
+            },
+            ParamsErrorKind::NonPhysical(n) => ParamsErrorKind::NonPhysical(*n),
+            ParamsErrorKind::BothInertias => ParamsErrorKind::BothInertias,
+            ParamsErrorKind::UnknownEffect { name, suggestion } => ParamsErrorKind::UnknownEffect {
+                name: name.clone(),
+                suggestion: *suggestion,
+            },
+        };
+        ParamsError {
+            loc: self.loc.clone(),
+            kind: Box::new(kind),
+        }
+    }
+}
+
+/// What is wrong with a parameter file.
+#[derive(Debug)]
+pub enum ParamsErrorKind {
+    Io(std::io::Error),
+    Toml(TomlProblem),
+    /// Number of `[[link]]` tables differs from the arm's DOF.
+    LinkCount {
+        expected: usize,
+        found: usize,
+    },
+    /// Not a physically possible rigid body.
+    NonPhysical(NonPhysical),
+    /// Both `inertia_com` and `inertia_origin` given.
+    BothInertias,
+    /// An `[effects]` entry that is not in [`KNOWN_EFFECTS`].
+    UnknownEffect {
+        name: String,
+        suggestion: Option<&'static str>,
+    },
+}
+
+/// Why a link's parameters are not physically possible.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum NonPhysical {
+    NegativeMass {
+        m: f64,
+    },
+    MasslessWithInertia,
+    /// Smallest principal moment about the COM.
+    NotPositiveSemidefinite {
+        min_eigenvalue: f64,
+    },
+    /// Principal moments `[i1, i2, i3]` with `i1 + i2 < i3`.
+    TriangleInequality {
+        moments: [f64; 3],
+    },
+}
+
+impl fmt::Display for NonPhysical {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            NonPhysical::NegativeMass { m } => write!(f, "mass {m} is negative — masses must be ≥ 0 (kg)"),
+            NonPhysical::MasslessWithInertia => write!(
+                f,
+                "massless link with non-zero inertia is not a rigid body — give the link its mass, or zero inertias for a virtual link (or pass --allow-nonphysical)"
+            ),
+            NonPhysical::NotPositiveSemidefinite { min_eigenvalue } => write!(
+                f,
+                "inertia about the centre of mass is not positive semidefinite (principal moment {min_eigenvalue:e}) — check signs: off-diagonals are tensor entries (ixy = −∫xy dm), diagonals must be ≥ 0 (or pass --allow-nonphysical)"
+            ),
+            NonPhysical::TriangleInequality { moments: [a, b, c] } => write!(
+                f,
+                "principal moments {a:e}, {b:e}, {c:e} break the triangle inequality ({a:e} + {b:e} < {c:e}) — no mass distribution has them; check the values (or pass --allow-nonphysical)"
+            ),
+        }
+    }
+}
+
+impl fmt::Display for ParamsErrorKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ParamsErrorKind::Io(e) => write!(f, "cannot read the file: {e} — check the path and permissions"),
+            ParamsErrorKind::Toml(p) => write!(f, "{p}"),
+            ParamsErrorKind::LinkCount { expected, found } => write!(
+                f,
+                "{found} `[[link]]` tables but the arm has {expected} joints — give exactly one `[[link]]` per joint, in joint order"
+            ),
+            ParamsErrorKind::NonPhysical(n) => write!(f, "{n}"),
+            ParamsErrorKind::BothInertias => write!(
+                f,
+                "both `inertia_com` and `inertia_origin` given — keep exactly one of them"
+            ),
+            ParamsErrorKind::UnknownEffect { name, suggestion } => {
+                write!(f, "unknown effect `{name}` — ")?;
+                if let Some(s) = suggestion {
+                    write!(f, "did you mean `{s}`? ")?;
+                }
+                write!(f, "known effects: {}", list(&KNOWN_EFFECTS))
+            }
+        }
+    }
+}
+
+impl From<Fail> for ParamsError {
+    fn from(fail: Fail) -> Self {
+        let (loc, problem) = *fail;
+        ParamsError {
+            loc,
+            kind: Box::new(ParamsErrorKind::Toml(problem)),
+        }
+    }
+}
+
+impl InertialParams {
+    /// Reads a parameter file for an arm with `dof` joints.
+    pub fn from_path(path: &Path, dof: usize, opts: &ParamsOptions) -> Result<Self, ParamsError> {
+        let file = path.display().to_string();
+        let io_err = |e| ParamsError {
+            loc: Location::file(&file),
+            kind: Box::new(ParamsErrorKind::Io(e)),
+        };
+        let bytes = std::fs::read(path).map_err(io_err)?;
+        let text = String::from_utf8(bytes)
+            .map_err(|e| io_err(std::io::Error::new(std::io::ErrorKind::InvalidData, e)))?;
+        Self::from_str(&text, &file, dof, opts)
+    }
+
+    /// Parses a parameter file; `origin` names it in errors.
+    #[allow(clippy::should_implement_trait)] // `FromStr` cannot take the origin and DOF.
+    pub fn from_str(
+        text: &str,
+        origin: &str,
+        dof: usize,
+        opts: &ParamsOptions,
+    ) -> Result<Self, ParamsError> {
+        let src = Src {
+            file: origin,
+            text: text.strip_prefix('\u{feff}').unwrap_or(text),
+        };
+        let doc = src.parse()?;
+        let root = src.root(&doc);
+        root.check_keys(&TOP_KEYS)?;
+        let allow = opts.allow_nonphysical || root.bool_opt("allow_nonphysical")?.unwrap_or(false);
+
+        let tables = root.tables("link")?;
+        if tables.len() != dof {
+            let loc = match tables.get(dof) {
+                Some(extra) => extra.loc(),
+                None => root.loc_of("link"),
+            };
+            return Err(ParamsError {
+                loc,
+                kind: Box::new(ParamsErrorKind::LinkCount {
+                    expected: dof,
+                    found: tables.len(),
+                }),
+            });
+        }
+        let mut warnings = Vec::new();
+        let mut links = Vec::with_capacity(dof);
+        for t in &tables {
+            let link = read_link(t)?;
+            if let Err(n) = check_physical(link.m, &link.inertia_com) {
+                let err = ParamsError {
+                    loc: t.loc(),
+                    kind: Box::new(ParamsErrorKind::NonPhysical(n)),
+                };
+                if !allow {
+                    return Err(err);
+                }
+                warnings.push(err);
+            }
+            links.push(link);
+        }
+        let effects = match root.subtable("effects")? {
+            Some(t) => read_effects(&t, dof)?,
+            None => Effects::default(),
+        };
+        Ok(InertialParams {
+            links,
+            effects,
+            warnings,
+        })
+    }
+
+    /// Degrees of freedom (number of links).
+    pub fn dof(&self) -> usize {
+        self.links.len()
+    }
+
+    /// The full parameter vector `p` (length `10·dof`, [`crate::model::PARAM_ORDER`] per link).
+    pub fn full_vector(&self) -> Vec<f64> {
+        self.links
+            .iter()
+            .flat_map(LinkInertia::standard_params)
+            .collect()
+    }
+}
+
+fn read_link(t: &TableView<'_>) -> Result<LinkInertia, ParamsError> {
+    t.check_keys(&LINK_KEYS)?;
+    let name = t.str_opt("name")?.map(str::to_string);
+    let m = t.f64_req("m")?;
+    let massless = m == 0.0;
+    let com = match t.f64_array_opt("com", Some(3))? {
+        Some(c) => [c[0], c[1], c[2]],
+        None if massless => [0.0; 3],
+        None => return Err(t.missing_key("com").into()),
+    };
+    let ic = t.f64_array_opt("inertia_com", Some(6))?;
+    let io = t.f64_array_opt("inertia_origin", Some(6))?;
+    let six = |v: Vec<f64>| [v[0], v[1], v[2], v[3], v[4], v[5]];
+    // Parallel-axis theorem, tensor form: I_O = I_C + m (|c|² 1 − c cᵀ).
+    let [x, y, z] = com;
+    let shift = [
+        m * (y * y + z * z),
+        -m * x * y,
+        -m * x * z,
+        m * (x * x + z * z),
+        -m * y * z,
+        m * (x * x + y * y),
+    ];
+    let (inertia_com, inertia_origin) = match (ic, io) {
+        (Some(_), Some(_)) => {
+            return Err(ParamsError {
+                loc: t.loc_of("inertia_origin"),
+                kind: Box::new(ParamsErrorKind::BothInertias),
+            })
+        }
+        (Some(c), None) => {
+            let c = six(c);
+            (c, std::array::from_fn(|k| c[k] + shift[k]))
+        }
+        (None, Some(o)) => {
+            let o = six(o);
+            (std::array::from_fn(|k| o[k] - shift[k]), o)
+        }
+        (None, None) if massless => ([0.0; 6], [0.0; 6]),
+        (None, None) => return Err(t.missing_key("inertia_com").into()),
+    };
+    Ok(LinkInertia {
+        name,
+        m,
+        com,
+        inertia_com,
+        inertia_origin,
+    })
+}
+
+fn read_effects(t: &TableView<'_>, dof: usize) -> Result<Effects, ParamsError> {
+    for key in t.keys() {
+        if !KNOWN_EFFECTS.contains(&key) {
+            return Err(ParamsError {
+                loc: t.loc_of(key),
+                kind: Box::new(ParamsErrorKind::UnknownEffect {
+                    name: key.to_string(),
+                    suggestion: did_you_mean(key, &KNOWN_EFFECTS),
+                }),
+            });
+        }
+    }
+    Ok(Effects {
+        viscous: t.f64_array_opt("viscous", Some(dof))?,
+        coulomb: t.f64_array_opt("coulomb", Some(dof))?,
+        armature: t.f64_array_opt("armature", Some(dof))?,
+        offset: t.f64_array_opt("offset", Some(dof))?,
+    })
+}
+
+/// Checks that `m` and the inertia about the centre of mass `[ixx, ixy, ixz, iyy, iyz, izz]`
+/// describe a possible rigid body (see the module docs). Semidefinite is accepted (point
+/// masses, thin rods); the tolerance is relative to the largest principal moment.
+pub fn check_physical(m: f64, inertia_com: &[f64; 6]) -> Result<(), NonPhysical> {
+    if m < 0.0 {
+        return Err(NonPhysical::NegativeMass { m });
+    }
+    if m == 0.0 {
+        return if inertia_com.iter().all(|&v| v == 0.0) {
+            Ok(())
+        } else {
+            Err(NonPhysical::MasslessWithInertia)
+        };
+    }
+    let [xx, xy, xz, yy, yz, zz] = *inertia_com;
+    let tensor = Matrix3::new(xx, xy, xz, xy, yy, yz, xz, yz, zz);
+    let mut moments: Vec<f64> = SymmetricEigen::new(tensor)
+        .eigenvalues
+        .iter()
+        .copied()
+        .collect();
+    moments.sort_by(f64::total_cmp);
+    let tol = 1e-9 * moments[2].abs().max(f64::MIN_POSITIVE);
+    if moments[0] < -tol {
+        return Err(NonPhysical::NotPositiveSemidefinite {
+            min_eigenvalue: moments[0],
+        });
+    }
+    if moments[0] + moments[1] < moments[2] - tol {
+        return Err(NonPhysical::TriangleInequality {
+            moments: [moments[0], moments[1], moments[2]],
+        });
+    }
+    Ok(())
+}

@@ -1,0 +1,550 @@
+//! Writes what `dynid identify` found: `report.md`, SVG plots, `report.json` and, with
+//! validation data, `validation_prediction.csv`.
+//!
+//! Every file is rendered in memory first and then written atomically
+//! ([`crate::io::atomic_write`]), so an error leaves no partial report.
+//!
+//! `report.json` keys: `arm`, `dof`, `base_parameters_from`, `data` (`train`/`validate` files with
+//! sampling and the derivative estimator used), `theta` (base parameters: `name`, `expression`,
+//! `value`, `std`, `rel_std_percent`), `effects` (coefficients of the augmented model, same
+//! fields plus `joint`, `effect`, `unit`), `effects_found` (`joint`, `effect`, `evidence`),
+//! `not_identifiable`, `error` (`before`/`after` × `train`/`validation`, each `per_joint` and
+//! `overall` relative RMS `‖τ̂−τ‖/‖τ‖` against the measured torque), `steps` (rigid → + effect →
+//! …), `selection`, `condition_number`, `cutoff_scan`, `command`.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use plotters::prelude::*;
+use serde_json::{json, Value};
+
+use crate::identify::{Errors, Outcome};
+use crate::io::{atomic_write, WriteError};
+
+/// Why a report could not be written.
+#[derive(Debug, thiserror::Error)]
+pub enum ReportError {
+    #[error(transparent)]
+    Write(#[from] WriteError),
+    #[error("{}: cannot create the output directory: {source} — check the path and permissions", path.display())]
+    Dir {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("plot {name}: {msg}")]
+    Plot { name: String, msg: String },
+}
+
+/// Files written, in order.
+pub fn write(dir: &Path, o: &Outcome, command: &str) -> Result<Vec<PathBuf>, ReportError> {
+    // Render everything first: nothing is written if any part fails.
+    let mut files: Vec<(String, Vec<u8>)> = Vec::new();
+    let mut plots = Vec::new();
+    for j in 0..o.dof {
+        let name = format!("residual_vs_velocity_joint{}.svg", j + 1);
+        files.push((
+            name.clone(),
+            residual_plot(o, j)
+                .map_err(|msg| ReportError::Plot {
+                    name: name.clone(),
+                    msg,
+                })?
+                .into_bytes(),
+        ));
+        plots.push(name);
+    }
+    if o.validate.is_some() {
+        for j in 0..o.dof {
+            let name = format!("validation_joint{}.svg", j + 1);
+            files.push((
+                name.clone(),
+                validation_plot(o, j)
+                    .map_err(|msg| ReportError::Plot {
+                        name: name.clone(),
+                        msg,
+                    })?
+                    .into_bytes(),
+            ));
+            plots.push(name);
+        }
+    }
+    let json = serde_json::to_string_pretty(&json_report(o, command))
+        .unwrap_or_else(|e| format!("{{\"error\": \"{e}\"}}"));
+    files.push(("report.json".into(), json.into_bytes()));
+    if let Some(csv) = prediction_csv(o) {
+        files.push(("validation_prediction.csv".into(), csv.into_bytes()));
+    }
+    files.push((
+        "report.md".into(),
+        markdown(o, command, &plots).into_bytes(),
+    ));
+
+    std::fs::create_dir_all(dir).map_err(|source| ReportError::Dir {
+        path: dir.to_path_buf(),
+        source,
+    })?;
+    let mut written = Vec::new();
+    for (name, bytes) in files {
+        let path = dir.join(name);
+        atomic_write(&path, |w| w.write_all(&bytes))?;
+        written.push(path);
+    }
+    Ok(written)
+}
+
+fn errors_json(e: &Errors) -> Value {
+    json!({ "per_joint": e.per_joint, "overall": e.overall })
+}
+
+/// The `report.json` document.
+pub fn json_report(o: &Outcome, command: &str) -> Value {
+    let eff: Vec<Value> = o
+        .effects
+        .iter()
+        .map(|(t, e)| {
+            json!({
+                "joint": t.joint + 1, "effect": t.effect.name(), "name": e.name, "value": e.value,
+                "std": e.std, "rel_std_percent": e.rel_std_percent, "unit": e.unit,
+            })
+        })
+        .collect();
+    let found: Vec<Value> = o
+        .selection
+        .steps
+        .iter()
+        .map(|s| {
+            json!({
+                "joint": s.added.joint + 1, "effect": s.added.effect.name(),
+                "evidence": {
+                    "heldout_gain": s.evidence.heldout_gain,
+                    "torque_share": s.evidence.torque_share,
+                    "t_stat": s.evidence.t_stat,
+                    "t_crit": s.evidence.t_crit,
+                    "partial_corr": s.evidence.partial_corr,
+                    "test": "leave-one-block-out held-out error; one-sided t-test on per-block log ratios of held-out error (Bonferroni, family 1 %), gain >= 1 % of the joint's held-out residual variance and >= 1e-6 of its torque power",
+                }
+            })
+        })
+        .collect();
+    let opt = |e: &Option<Errors>| e.as_ref().map(errors_json).unwrap_or(Value::Null);
+    json!({
+        "arm": o.arm,
+        "dof": o.dof,
+        "base_parameters_from": o.base_source,
+        "data": { "train": o.train, "validate": o.validate },
+        "effects_mode": o.effects_mode,
+        "theta": o.theta,
+        "effects": eff,
+        "effects_found": found,
+        "not_identifiable": o.merged.iter().map(|(t, w)| json!({"effect": t, "merged_with": w})).collect::<Vec<_>>(),
+        "error": {
+            "before": { "train": errors_json(&o.before.train), "validation": opt(&o.before.validation), "heldout_train_blocks": o.before.heldout_rms },
+            "after": { "train": errors_json(&o.after.train), "validation": opt(&o.after.validation), "heldout_train_blocks": o.after.heldout_rms },
+            "definition": "relative RMS ||tau_hat - tau|| / ||tau|| against the torque as measured in the file (unfiltered), per joint and over all joints",
+        },
+        "steps": o.steps,
+        "selection": o.selection,
+        "condition_number": o.cond,
+        "condition_number_scaled_columns": o.cond_scaled,
+        "residual_sigma_per_joint": o.sigma,
+        "time_blocks": o.blocks,
+        "friction_scales": o.scales,
+        "cutoff_scan": o.cutoff_scan,
+        "estimator": "weighted least squares (per-joint 1/sigma), incremental QR, parallel zero-phase filtering of tau and regressor; std by block jackknife; no physical-consistency constraints",
+        "command": command,
+    })
+}
+
+fn prediction_csv(o: &Outcome) -> Option<String> {
+    let rows = o.predictions.as_ref()?;
+    let n = o.dof;
+    let mut s = String::with_capacity(rows.len() * 16 * (3 * n + 1));
+    s.push('t');
+    for prefix in ["tau", "before", "after"] {
+        for j in 1..=n {
+            let _ = write!(s, ",{prefix}{j}");
+        }
+    }
+    s.push('\n');
+    for r in rows {
+        // `{}` prints the shortest representation that parses back to the same f64, so t and tau
+        // are the values read from the validation file.
+        let _ = write!(s, "{}", r.t);
+        for v in r.tau.iter().chain(&r.before).chain(&r.after) {
+            let _ = write!(s, ",{v}");
+        }
+        s.push('\n');
+    }
+    Some(s)
+}
+
+fn pct(v: f64) -> String {
+    if v.is_finite() {
+        format!("{:.2} %", 100.0 * v)
+    } else {
+        "—".into()
+    }
+}
+
+fn err_cells(e: &Errors) -> String {
+    let mut s: Vec<String> = e.per_joint.iter().map(|v| pct(*v)).collect();
+    s.push(format!("**{}**", pct(e.overall)));
+    s.join(" | ")
+}
+
+fn num(v: f64) -> String {
+    if !v.is_finite() {
+        return "—".into();
+    }
+    if v != 0.0 && (v.abs() < 1e-3 || v.abs() >= 1e4) {
+        format!("{v:.4e}")
+    } else {
+        format!("{v:.5}")
+    }
+}
+
+/// The `report.md` text.
+pub fn markdown(o: &Outcome, command: &str, plots: &[String]) -> String {
+    let n = o.dof;
+    let mut m = String::new();
+    let _ = writeln!(m, "# Identification of `{}`\n", o.arm);
+    let _ = writeln!(m, "Reproduce: `{command}`\n");
+    let found: Vec<String> = o
+        .selection
+        .steps
+        .iter()
+        .map(|s| format!("`{}`", s.label))
+        .collect();
+    let _ = writeln!(
+        m,
+        "Effects mode `{}`; effects found: {}.\n",
+        o.effects_mode,
+        if found.is_empty() {
+            "none".to_string()
+        } else {
+            found.join(", ")
+        }
+    );
+
+    let _ = writeln!(
+        m,
+        "## Torque error (relative RMS ‖τ̂−τ‖/‖τ‖ against the torque as measured in the file)\n"
+    );
+    let head: Vec<String> = (1..=n).map(|j| format!("joint {j}")).collect();
+    let _ = writeln!(m, "| model | data | {} | overall |", head.join(" | "));
+    let _ = writeln!(m, "|---|---|{}---|", "---|".repeat(n));
+    for (label, r) in [
+        ("before (declared: rigid body)", &o.before),
+        ("after (augmented)", &o.after),
+    ] {
+        let _ = writeln!(m, "| {label} | training | {} |", err_cells(&r.train));
+        if let Some(v) = &r.validation {
+            let _ = writeln!(m, "| {label} | validation | {} |", err_cells(v));
+        }
+    }
+    let _ = writeln!(m);
+
+    let _ = writeln!(m, "## Steps: rigid → + effect → …\n");
+    let _ = writeln!(
+        m,
+        "| model | training error | held-out (blocks) | validation error |"
+    );
+    let _ = writeln!(m, "|---|---|---|---|");
+    for s in &o.steps {
+        let _ = writeln!(
+            m,
+            "| {} | {} | {} | {} |",
+            s.model,
+            pct(s.train.overall),
+            pct(s.heldout_rms),
+            s.validation.as_ref().map_or("—".into(), |v| pct(v.overall))
+        );
+    }
+    let _ = writeln!(m);
+
+    let _ = writeln!(m, "## Evidence for each effect added\n");
+    let _ = writeln!(
+        m,
+        "Each candidate (effect, joint) is judged on held-out time blocks ({} blocks; each block predicted by a fit on the others): added only if a one-sided t-test on the per-block log ratios of held-out error passes (Bonferroni over the candidates, family level 1 %), it removes ≥ 1 % of the joint's held-out residual variance and explains ≥ 1e-6 of its torque power.\n",
+        o.blocks
+    );
+    let _ = writeln!(
+        m,
+        "| step | added | held-out gain | t / t_crit | partial corr. of residual |"
+    );
+    let _ = writeln!(m, "|---|---|---|---|---|");
+    for (i, s) in o.selection.steps.iter().enumerate() {
+        let e = &s.evidence;
+        let _ = writeln!(
+            m,
+            "| {} | `{}` | {} | {:.1} / {:.1} | {:.3} |",
+            i + 1,
+            s.label,
+            pct(e.heldout_gain),
+            e.t_stat,
+            e.t_crit,
+            e.partial_corr
+        );
+    }
+    if let Some(e) = &o.selection.stopped_on {
+        let _ = writeln!(
+            m,
+            "\nStopped: the best remaining candidate `{}` gained {} (t = {:.2}, needed {:.2}; torque share {:.2e}).",
+            e.label,
+            pct(e.heldout_gain),
+            e.t_stat,
+            e.t_crit,
+            e.torque_share
+        );
+    }
+    for (t, w) in &o.merged {
+        let _ = writeln!(m, "\n`{t}` is not identifiable: its column equals a combination of {} for every motion, so it is merged there (not reported as an effect).", w.join(", "));
+    }
+    if !o.selection.collinear.is_empty() {
+        let _ = writeln!(
+            m,
+            "\nSkipped (collinear with the model in this data): {}.",
+            o.selection.collinear.join(", ")
+        );
+    }
+    let _ = writeln!(m);
+
+    let _ = writeln!(m, "## Identified parameters (augmented model)\n");
+    let _ = writeln!(
+        m,
+        "Base parameters from {}. Standard deviations by block jackknife.\n",
+        o.base_source
+    );
+    let _ = writeln!(m, "| parameter | expression | value | std | %σ |");
+    let _ = writeln!(m, "|---|---|---|---|---|");
+    for p in &o.theta {
+        let _ = writeln!(
+            m,
+            "| `{}` | {} | {} | {} | {:.2} |",
+            p.name,
+            p.expression,
+            num(p.value),
+            num(p.std),
+            p.rel_std_percent
+        );
+    }
+    for (_, p) in &o.effects {
+        let _ = writeln!(
+            m,
+            "| `{}` | {} [{}] | {} | {} | {:.2} |",
+            p.name,
+            p.expression,
+            p.unit.as_deref().unwrap_or(""),
+            num(p.value),
+            num(p.std),
+            p.rel_std_percent
+        );
+    }
+    let _ = writeln!(
+        m,
+        "\nCondition number of the weighted regressor: {:.1} (columns scaled to unit norm: {:.1}).",
+        o.cond, o.cond_scaled
+    );
+    let _ = writeln!(
+        m,
+        "Residual standard deviation per joint (weights 1/σ): {}.\n",
+        o.sigma
+            .iter()
+            .map(|s| num(*s))
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+
+    let _ = writeln!(m, "## Data, filter and derivative estimator\n");
+    let _ = writeln!(m, "| file | role | rows (used) | duration | sampling dt median / min / max | resampled | filter | q̇ | q̈ |");
+    let _ = writeln!(m, "|---|---|---|---|---|---|---|---|---|");
+    let files = o
+        .train
+        .iter()
+        .map(|f| ("training", f))
+        .chain(o.validate.iter().map(|f| ("validation", f)));
+    for (role, f) in files {
+        let d = &f.derivative;
+        let s = &d.sampling;
+        let _ = writeln!(
+            m,
+            "| `{}` | {} | {} ({}) | {:.2} s | {:.3} / {:.3} / {:.3} ms | {} | {} | {} | {} |",
+            f.file,
+            role,
+            f.rows,
+            f.rows_used,
+            f.duration_s,
+            1e3 * s.dt_median,
+            1e3 * s.dt_min,
+            1e3 * s.dt_max,
+            if d.resampled {
+                "yes (linear, to the median step)"
+            } else {
+                "no"
+            },
+            d.filter,
+            d.dq_source,
+            d.ddq_source
+        );
+    }
+    if !o.cutoff_scan.is_empty() {
+        let _ = writeln!(m, "\nCut-off chosen automatically: smallest held-out error against the measured torque over the scan (rigid body + all candidate effects):\n");
+        let _ = writeln!(m, "| cut-off (Hz) | held-out error |");
+        let _ = writeln!(m, "|---|---|");
+        for c in &o.cutoff_scan {
+            let _ = writeln!(m, "| {:.2} | {} |", c.cutoff_hz, pct(c.heldout_error));
+        }
+    }
+    let _ = writeln!(
+        m,
+        "\nThe same zero-phase filter was applied to the measured torque and to every regressor column (parallel filtering) to build the regression; errors are computed against the unfiltered torque at the file's own sample times. Filter edges are dropped."
+    );
+    let _ = writeln!(m, "\n## Plots\n");
+    for p in plots {
+        let _ = writeln!(m, "![{p}]({p})\n");
+    }
+    if o.predictions.is_some() {
+        let _ = writeln!(m, "`validation_prediction.csv`: `t`, measured `tau`, and the torques predicted by the declared (`before`) and augmented (`after`) models at every validation sample used; the errors above can be recomputed from it.");
+    }
+    m
+}
+
+fn bounds(pts: impl Iterator<Item = (f64, f64)>) -> (f64, f64, f64, f64) {
+    let (mut x0, mut x1, mut y0, mut y1) = (
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+    );
+    for (x, y) in pts {
+        if x.is_finite() && y.is_finite() {
+            x0 = x0.min(x);
+            x1 = x1.max(x);
+            y0 = y0.min(y);
+            y1 = y1.max(y);
+        }
+    }
+    if x1.is_nan() || x0.is_nan() || x1 <= x0 {
+        (x0, x1) = (x0.min(0.0) - 1.0, x1.max(0.0) + 1.0);
+    }
+    if y1.is_nan() || y0.is_nan() || y1 <= y0 {
+        (y0, y1) = (y0.min(0.0) - 1.0, y1.max(0.0) + 1.0);
+    }
+    let (px, py) = (0.03 * (x1 - x0), 0.05 * (y1 - y0));
+    (x0 - px, x1 + px, y0 - py, y1 + py)
+}
+
+fn residual_plot(o: &Outcome, j: usize) -> Result<String, String> {
+    let (before, after) = &o.series.resid_vs_vel[j];
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, (800, 500)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| e.to_string())?;
+        let (x0, x1, y0, y1) = bounds(before.iter().chain(after.iter()).copied());
+        let mut chart = ChartBuilder::on(&root)
+            .caption(
+                format!(
+                    "joint {}: torque residual vs velocity (training data)",
+                    j + 1
+                ),
+                ("sans-serif", 20),
+            )
+            .margin(10)
+            .x_label_area_size(40)
+            .y_label_area_size(60)
+            .build_cartesian_2d(x0..x1, y0..y1)
+            .map_err(|e| e.to_string())?;
+        chart
+            .configure_mesh()
+            .x_desc(format!("q̇{} (rad/s)", j + 1))
+            .y_desc("τ measured − τ predicted (N·m)")
+            .draw()
+            .map_err(|e| e.to_string())?;
+        chart
+            .draw_series(
+                before
+                    .iter()
+                    .map(|&(x, y)| Circle::new((x, y), 1, RGBColor(200, 80, 60).filled())),
+            )
+            .map_err(|e| e.to_string())?
+            .label("before (rigid body)")
+            .legend(|(x, y)| Circle::new((x, y), 3, RGBColor(200, 80, 60).filled()));
+        chart
+            .draw_series(
+                after
+                    .iter()
+                    .map(|&(x, y)| Circle::new((x, y), 1, RGBColor(40, 90, 200).filled())),
+            )
+            .map_err(|e| e.to_string())?
+            .label("after (augmented)")
+            .legend(|(x, y)| Circle::new((x, y), 3, RGBColor(40, 90, 200).filled()));
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .draw()
+            .map_err(|e| e.to_string())?;
+        root.present().map_err(|e| e.to_string())?;
+    }
+    Ok(svg)
+}
+
+/// A labelled curve of the validation plot: which value of `(t, measured, before, after)`.
+type Curve = (&'static str, RGBColor, fn(&(f64, f64, f64, f64)) -> f64);
+
+fn validation_plot(o: &Outcome, j: usize) -> Result<String, String> {
+    let pts = &o.series.validation[j];
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, (1000, 450)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| e.to_string())?;
+        let (x0, x1, y0, y1) = bounds(
+            pts.iter()
+                .flat_map(|&(t, a, b, c)| [(t, a), (t, b), (t, c)]),
+        );
+        let mut chart = ChartBuilder::on(&root)
+            .caption(
+                format!(
+                    "joint {}: predicted vs measured torque (validation data)",
+                    j + 1
+                ),
+                ("sans-serif", 20),
+            )
+            .margin(10)
+            .x_label_area_size(40)
+            .y_label_area_size(60)
+            .build_cartesian_2d(x0..x1, y0..y1)
+            .map_err(|e| e.to_string())?;
+        chart
+            .configure_mesh()
+            .x_desc("t (s)")
+            .y_desc(format!("τ{} (N·m)", j + 1))
+            .draw()
+            .map_err(|e| e.to_string())?;
+        let series: [Curve; 3] = [
+            ("measured", RGBColor(120, 120, 120), |p| p.1),
+            ("before (rigid body)", RGBColor(200, 80, 60), |p| p.2),
+            ("after (augmented)", RGBColor(40, 90, 200), |p| p.3),
+        ];
+        for (label, color, f) in series {
+            chart
+                .draw_series(LineSeries::new(
+                    pts.iter().map(|p| (p.0, f(p))),
+                    color.stroke_width(1),
+                ))
+                .map_err(|e| e.to_string())?
+                .label(label)
+                .legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
+                });
+        }
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .draw()
+            .map_err(|e| e.to_string())?;
+        root.present().map_err(|e| e.to_string())?;
+    }
+    Ok(svg)
+}

@@ -1,0 +1,126 @@
+//! Generated kernels (via the `Model` trait) against the hand-written reference, on random
+//! states and random physically valid parameters, for every registered arm; planar2 against
+//! the paper's Φ. Tolerances: both sides are direct floating-point evaluations of the same
+//! quantities in different orders, so they agree to ~1e-13 relative; 1e-9 leaves headroom for
+//! the 7-DOF arm's longer sums.
+
+use dynid::dh::DhTable;
+use dynid::model::Model;
+use dynid::reference::RefModel;
+use nalgebra::DMatrix;
+use rand::Rng;
+
+use crate::common::*;
+
+const REL: f64 = 1e-9;
+
+fn arm_table(m: &dyn Model) -> DhTable {
+    DhTable::from_str(m.arm_toml(), m.name()).unwrap_or_else(|e| panic!("{e}"))
+}
+
+#[test]
+fn registry_holds_the_required_arms() {
+    let names = dynid::arms::names();
+    for arm in ["panda", "planar2", "puma560", "scara"] {
+        assert!(names.contains(&arm), "{arm} not registered: {names:?}");
+    }
+    let mut sorted = names.clone();
+    sorted.sort_unstable();
+    assert_eq!(names, sorted, "registry is sorted by name");
+    let puma = dynid::arms::find("puma560").expect("puma560");
+    assert_eq!((puma.dof(), puma.np()), (6, 60));
+    assert_eq!(puma.param_names().len(), 60);
+    assert_eq!(puma.base_param_names().len(), puma.nb());
+    assert_eq!(puma.base_param_exprs().len(), puma.nb());
+    assert!(dynid::arms::find("nope").is_none());
+}
+
+#[test]
+fn generated_kernels_match_the_reference() {
+    let mut r = rng(2024);
+    for &m in dynid::arms::all() {
+        let table = arm_table(m);
+        let reference = RefModel::new(&table);
+        let mut ws = reference.workspace();
+        let (n, np, nb) = (m.dof(), m.np(), m.nb());
+        assert_eq!(n, table.dof(), "{}: DOF", m.name());
+        for _ in 0..20 {
+            let p = cloud_params(&random_clouds(&mut r, n));
+            let (q, dq, ddq) = random_state(&mut r, n);
+            let what = |k: &str| format!("{}: {k}", m.name());
+
+            let mut tau = vec![0.0; n];
+            reference.inverse_dynamics(&mut ws, &q, &dq, &ddq, &p, &mut tau);
+            let mut y_ref = vec![0.0; n * np];
+            reference.regressor(&mut ws, &q, &dq, &ddq, &mut y_ref);
+            let mut m_ref = vec![0.0; n * n];
+            reference.mass_matrix(&mut ws, &q, &p, &mut m_ref);
+            let mut h_ref = vec![0.0; n];
+            reference.bias(&mut ws, &q, &dq, &p, &mut h_ref);
+            let mut g_ref = vec![0.0; n];
+            reference.gravity(&mut ws, &q, &p, &mut g_ref);
+
+            let mut y = vec![0.0; n * np];
+            m.regressor(&q, &dq, &ddq, &mut y);
+            assert_close(&y, &y_ref, REL, &what("regressor vs reference"));
+            let mut theta = vec![0.0; nb];
+            m.base_params(&p, &mut theta);
+            let mut yb = vec![0.0; n * nb];
+            m.base_regressor(&q, &dq, &ddq, &mut yb);
+            assert_close(&mat_vec(&yb, &theta), &tau, REL, &what("Yb·θ vs RNEA"));
+            let mut out = vec![0.0; n];
+            m.inverse_dynamics(&q, &dq, &ddq, &theta, &mut out);
+            assert_close(&out, &tau, REL, &what("inverse_dynamics vs RNEA"));
+            let mut mm = vec![0.0; n * n];
+            m.mass_matrix(&q, &theta, &mut mm);
+            assert_close(&mm, &m_ref, REL, &what("mass_matrix vs CRBA"));
+            m.bias(&q, &dq, &theta, &mut out);
+            assert_close(&out, &h_ref, REL, &what("bias vs reference"));
+            m.gravity(&q, &theta, &mut out);
+            assert_close(&out, &g_ref, REL, &what("gravity vs reference"));
+        }
+    }
+}
+
+/// The number of base parameters equals the rank of the stacked reference regressor.
+#[test]
+fn base_parameter_count_is_the_regressor_rank() {
+    let mut r = rng(99);
+    for &m in dynid::arms::all() {
+        let table = arm_table(m);
+        let reference = RefModel::new(&table);
+        let mut ws = reference.workspace();
+        let (n, np) = (m.dof(), m.np());
+        let samples = 2 * np / n + 10;
+        let mut stacked = Vec::with_capacity(samples * n * np);
+        let mut y = vec![0.0; n * np];
+        for _ in 0..samples {
+            let (mut q, dq, ddq) = random_state(&mut r, n);
+            q.iter_mut().for_each(|x| *x *= r.gen_range(0.5..2.0));
+            reference.regressor(&mut ws, &q, &dq, &ddq, &mut y);
+            stacked.extend_from_slice(&y);
+        }
+        let sv = DMatrix::from_row_slice(samples * n, np, &stacked).singular_values();
+        let tol = 1e-9 * sv.max();
+        let rank = sv.iter().filter(|&&s| s > tol).count();
+        assert_eq!(rank, m.nb(), "{}: rank of stacked Y vs NB", m.name());
+    }
+    assert_eq!(dynid::arms::find("puma560").map(|m| m.nb()), Some(36));
+}
+
+#[test]
+fn planar2_base_regressor_is_the_paper_phi() {
+    let m = dynid::arms::find("planar2").expect("planar2 registered");
+    let mut r = rng(5);
+    let mut yb = vec![0.0; 12];
+    for _ in 0..200 {
+        let (q, dq, ddq) = random_state(&mut r, 2);
+        m.base_regressor(&q, &dq, &ddq, &mut yb);
+        let phi = planar2_phi(&q, &dq, &ddq);
+        assert_close(&yb, &phi, 1e-12, "planar2 Yb vs Φ");
+        let p: Vec<f64> = (0..20).map(|_| r.gen_range(-2.0..2.0)).collect();
+        let mut theta = vec![0.0; 6];
+        m.base_params(&p, &mut theta);
+        assert_close(&theta, &planar2_theta(&p), 1e-15, "planar2 θ");
+    }
+}

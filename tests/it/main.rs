@@ -1,0 +1,12 @@
+//! Integration tests (one binary, one module per area). Tests are specifications: each checks
+//! numbers against an independent oracle with a justified tolerance.
+
+mod cli;
+mod common;
+mod identify;
+mod kernels;
+mod loaders;
+mod new_arm;
+mod paper;
+mod reference;
+mod urdf;
