@@ -984,6 +984,13 @@ fn pinocchio_unavailable(script: &Path) -> Option<String> {
 fn run_pinocchio_check(extra: &[&str]) {
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/pinocchio/check_urdf.py");
     if let Some(why) = pinocchio_unavailable(&script) {
+        // CI installs tests/pinocchio/requirements.txt: there a missing Pinocchio is a failure,
+        // not a silent pass.
+        assert!(
+            std::env::var("CI").as_deref() != Ok("true"),
+            "CI=true but the Pinocchio comparison cannot run: {}",
+            why.trim()
+        );
         eprintln!(
             "SKIPPED: Pinocchio comparison of import-urdf — {}",
             why.trim()
