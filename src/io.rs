@@ -15,12 +15,14 @@ use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
 /// Writing an output file failed; the target was not modified.
+///
+/// The I/O error is part of the message and deliberately not an error `source`: `{:#}` would
+/// print it twice.
 #[derive(Debug, thiserror::Error)]
-#[error("{}: cannot write: {source} — check that the directory exists and is writable", path.display())]
+#[error("{}: cannot write: {cause} — check that the directory is writable and the disk not full", path.display())]
 pub struct WriteError {
     pub path: PathBuf,
-    #[source]
-    pub source: std::io::Error,
+    pub cause: std::io::Error,
 }
 
 /// Writes `path` atomically with the bytes produced by `write` (which gets a buffered writer).
@@ -29,14 +31,16 @@ pub fn atomic_write<F>(path: &Path, write: F) -> Result<(), WriteError>
 where
     F: FnOnce(&mut dyn Write) -> std::io::Result<()>,
 {
-    let err = |source| WriteError {
+    let err = |cause| WriteError {
         path: path.to_path_buf(),
-        source,
+        cause,
     };
     let dir = match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p,
         _ => Path::new("."),
     };
+    // `--out results/run1.csv` in a fresh checkout: make the directory, as `--out DIR` does.
+    std::fs::create_dir_all(dir).map_err(err)?;
     let stem = path
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())

@@ -38,7 +38,7 @@ use crate::diag::{did_you_mean, list, Location, TomlProblem};
 use crate::tomlread::{Fail, Src, TableView};
 
 /// Names of the per-joint effects an `[effects]` table may hold.
-pub const KNOWN_EFFECTS: [&str; 4] = ["viscous", "coulomb", "armature", "offset"];
+pub const KNOWN_EFFECTS: [&str; 5] = ["viscous", "coulomb", "armature", "offset", "spring"];
 
 const TOP_KEYS: [&str; 3] = ["link", "effects", "allow_nonphysical"];
 const LINK_KEYS: [&str; 5] = ["m", "com", "inertia_com", "inertia_origin", "name"];
@@ -86,6 +86,9 @@ pub struct Effects {
     pub armature: Option<Vec<f64>>,
     /// Constant torque offset: `τ += τ0`.
     pub offset: Option<Vec<f64>>,
+    /// Linear spring `k` about q = 0 (a spring about another rest angle is a spring plus an
+    /// offset): `τ += k·q`.
+    pub spring: Option<Vec<f64>>,
 }
 
 impl Effects {
@@ -95,10 +98,11 @@ impl Effects {
             && self.coulomb.is_none()
             && self.armature.is_none()
             && self.offset.is_none()
+            && self.spring.is_none()
     }
 
-    /// Torque of all effects at joint `j` for velocity `dq` and acceleration `ddq`.
-    pub fn torque(&self, j: usize, dq: f64, ddq: f64) -> f64 {
+    /// Torque of all effects at joint `j` for position `q`, velocity `dq` and acceleration `ddq`.
+    pub fn torque(&self, j: usize, q: f64, dq: f64, ddq: f64) -> f64 {
         let get = |v: &Option<Vec<f64>>| v.as_ref().map_or(0.0, |v| v[j]);
         let sign = if dq > 0.0 {
             1.0
@@ -111,6 +115,7 @@ impl Effects {
             + get(&self.coulomb) * sign
             + get(&self.armature) * ddq
             + get(&self.offset)
+            + get(&self.spring) * q
     }
 }
 
@@ -404,6 +409,7 @@ fn read_effects(t: &TableView<'_>, dof: usize) -> Result<Effects, ParamsError> {
         coulomb: t.f64_array_opt("coulomb", Some(dof))?,
         armature: t.f64_array_opt("armature", Some(dof))?,
         offset: t.f64_array_opt("offset", Some(dof))?,
+        spring: t.f64_array_opt("spring", Some(dof))?,
     })
 }
 

@@ -185,7 +185,7 @@ impl<'a> Plant<'a> {
         }
         if let Some(e) = &self.effects {
             for j in 0..n {
-                ddq[j] -= e.torque(j, dq[j], 0.0);
+                ddq[j] -= e.torque(j, q[j], dq[j], 0.0);
                 if let Some(ia) = &e.armature {
                     w.m[j * n + j] += ia[j];
                 }
@@ -204,7 +204,7 @@ impl<'a> Plant<'a> {
         self.model.inverse_dynamics(q, dq, ddq, &self.theta, tau);
         if let Some(e) = &self.effects {
             for j in 0..q.len() {
-                tau[j] += e.torque(j, dq[j], ddq[j]);
+                tau[j] += e.torque(j, q[j], dq[j], ddq[j]);
             }
         }
     }

@@ -5,6 +5,11 @@
 //! `T` is JSON as written by `dynid excite` (its `trajectory` field is used) or a bare trajectory
 //! (`{"kind": "sine", ...}`). The controller's model is `--estimate` (another parameter file) or,
 //! by default, the true parameters (rigid body only: the effects stay unmodelled).
+//!
+//! Measurement models for realistic test data (all off by default): `--tau-noise F` adds white
+//! Gaussian noise of F × each joint's RMS torque, `--encoder-counts N` quantises revolute
+//! positions to 2π/N rad (prismatic to 1/N m), `--positions-only` writes `t, q…, tau…` (no
+//! derivative columns, as a real log), `--seed` makes the noise reproducible.
 
 use std::path::PathBuf;
 
@@ -54,9 +59,54 @@ pub struct Args {
     /// Derivative gains (per joint). Default: the paper's for 2 DOF, else 4.
     #[arg(long, value_delimiter = ',')]
     pub kd: Option<Vec<f64>>,
+    /// Add white Gaussian torque noise: standard deviation as a fraction of each joint's RMS torque.
+    #[arg(long, default_value_t = 0.0)]
+    pub tau_noise: f64,
+    /// Quantise logged positions as an encoder with this many counts per revolution (per metre
+    /// for prismatic joints).
+    #[arg(long)]
+    pub encoder_counts: Option<f64>,
+    /// Write only `t, q…, tau…` (no dq/ddq columns: `identify` then differentiates q).
+    #[arg(long)]
+    pub positions_only: bool,
+    /// Seed of the measurement noise.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
     /// Output CSV (default: stdout).
     #[arg(long)]
     pub out: Option<PathBuf>,
+}
+
+/// Applies `--tau-noise` and `--encoder-counts` to the logged `q` and `tau` (row-major, `n` per row).
+fn add_measurement_noise(args: &Args, kinds: &[bool], q: &mut [f64], tau: &mut [f64]) {
+    use rand::SeedableRng;
+    use rand_distr::{Distribution, Normal};
+    // Row-major log: joint j's samples are every n-th value from j.
+    let n = kinds.len();
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(args.seed);
+    if args.tau_noise > 0.0 {
+        let rows = tau.len() / n;
+        for j in 0..n {
+            let rms = (tau.iter().skip(j).step_by(n).map(|v| v * v).sum::<f64>()
+                / rows.max(1) as f64)
+                .sqrt();
+            if let Ok(normal) = Normal::new(0.0, args.tau_noise * rms) {
+                for v in tau.iter_mut().skip(j).step_by(n) {
+                    *v += normal.sample(&mut rng);
+                }
+            }
+        }
+    }
+    if let Some(counts) = args.encoder_counts {
+        for (i, v) in q.iter_mut().enumerate() {
+            let step = if kinds[i % n] {
+                std::f64::consts::TAU / counts
+            } else {
+                1.0 / counts
+            };
+            *v = (*v / step).round() * step;
+        }
+    }
 }
 
 fn base_params(model: &dyn crate::model::Model, params: &InertialParams) -> Vec<f64> {
@@ -82,6 +132,21 @@ pub fn run(args: &Args) -> Result<()> {
             args.dt, args.log_every
         ))
         .into());
+    }
+    if !(args.tau_noise >= 0.0 && args.tau_noise.is_finite()) {
+        return Err(InputError(format!(
+            "--tau-noise must be a fraction ≥ 0 (e.g. 0.01 for 1 %), got {}",
+            args.tau_noise
+        ))
+        .into());
+    }
+    if let Some(c) = args.encoder_counts {
+        if !(c >= 1.0 && c.is_finite()) {
+            return Err(InputError(format!(
+                "--encoder-counts must be ≥ 1 (e.g. 131072 for a 17-bit encoder), got {c}"
+            ))
+            .into());
+        }
     }
     let opts = ParamsOptions::default();
     let truth = InertialParams::from_path(&args.params, n, &opts)?;
@@ -162,18 +227,35 @@ pub fn run(args: &Args) -> Result<()> {
         log_every: args.log_every,
         ..SimConfig::default()
     };
-    let log = simulate(&plant, controller.as_mut(), traj, &cfg)?;
+    let mut log = simulate(&plant, controller.as_mut(), traj, &cfg)?;
+    let table = crate::dh::DhTable::from_str(model.arm_toml(), model.name())?;
+    let revolute: Vec<bool> = table
+        .joints
+        .iter()
+        .map(|j| j.kind == crate::dh::JointKind::Revolute)
+        .collect();
+    add_measurement_noise(args, &revolute, &mut log.q, &mut log.tau);
 
+    let signals: Vec<(&str, &[f64])> = if args.positions_only {
+        vec![("q", &log.q), ("tau", &log.tau)]
+    } else {
+        vec![
+            ("q", &log.q),
+            ("dq", &log.dq),
+            ("ddq", &log.ddq),
+            ("tau", &log.tau),
+        ]
+    };
     let mut header = vec!["t".to_string()];
-    for sig in ["q", "dq", "ddq", "tau"] {
+    for (sig, _) in &signals {
         header.extend((1..=n).map(|j| format!("{sig}{j}")));
     }
     write_output(args.out.as_deref(), |w| {
         write_header(w, &header)?;
-        let mut row = vec![0.0; 1 + 4 * n];
+        let mut row = vec![0.0; 1 + signals.len() * n];
         for k in 0..log.len() {
             row[0] = log.t[k];
-            for (s, v) in [&log.q, &log.dq, &log.ddq, &log.tau].iter().enumerate() {
+            for (s, (_, v)) in signals.iter().enumerate() {
                 row[1 + s * n..1 + (s + 1) * n].copy_from_slice(&v[k * n..(k + 1) * n]);
             }
             write_row(w, &row)?;

@@ -931,9 +931,9 @@ pub fn write_outputs(
     results: &PaperResults,
     traces: &Traces,
 ) -> Result<Vec<String>, PaperError> {
-    std::fs::create_dir_all(dir).map_err(|source| crate::io::WriteError {
+    std::fs::create_dir_all(dir).map_err(|cause| crate::io::WriteError {
         path: dir.to_path_buf(),
-        source,
+        cause,
     })?;
     let figs = figures::write_all(dir, results, traces)?;
     let json =

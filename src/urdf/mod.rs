@@ -117,9 +117,9 @@ impl Imported {
     /// Writes `DIR/NAME.toml` and `DIR/NAME.params.toml` (each atomically; `dir` is created if
     /// missing) and returns their paths.
     pub fn write(&self, dir: &Path) -> Result<(PathBuf, PathBuf), crate::io::WriteError> {
-        std::fs::create_dir_all(dir).map_err(|source| crate::io::WriteError {
+        std::fs::create_dir_all(dir).map_err(|cause| crate::io::WriteError {
             path: dir.to_path_buf(),
-            source,
+            cause,
         })?;
         let dh = dir.join(format!("{}.toml", self.table.name));
         let params = dir.join(format!("{}.params.toml", self.table.name));

@@ -237,6 +237,7 @@ fn bad_inputs_exit_2_with_a_message_and_never_panic() {
         "name = \"x\"\nconvention = \"standard\"\n",
     );
     let (p, d) = (params.to_str().unwrap(), data.to_str().unwrap());
+    let out_under_file = format!("{d}/sub/out.csv");
     let cases: Vec<(Vec<&str>, &str)> = vec![
         (
             vec!["torque", "--arm", "pmua560", "--params", p, "--data", d],
@@ -304,7 +305,8 @@ fn bad_inputs_exit_2_with_a_message_and_never_panic() {
                 "--data",
                 d,
                 "--out",
-                "/nonexistent/dir/out.csv",
+                // a directory that cannot be made: its parent is a file (root may write anywhere)
+                &out_under_file,
             ],
             "cannot write",
         ),

@@ -333,7 +333,14 @@ fn valid_samples() -> Vec<Vec<u8>> {
         .expect("puma560.toml");
     let params = b"[[link]]\nm = 1.0\ncom = [0.1, 0.0, 0.0]\ninertia_com = [0.01, 0.0, 0.0, 0.01, 0.0, 0.01]\n[effects]\nviscous = [0.1]\n".to_vec();
     let csv = b"t,q1,dq1,ddq1,tau1\n0,1e-3,2,3,4\n0.5,1,2,3,4\n".to_vec();
-    vec![arm, params, csv]
+    let urdf = br#"<robot name="r"><link name="base"/>
+<link name="l1"><inertial><origin xyz="0.1 0 0" rpy="0 0 0"/><mass value="1"/><inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial></link>
+<link name="l2"><inertial><mass value="0.5"/><inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial></link>
+<joint name="j1" type="revolute"><parent link="base"/><child link="l1"/><origin xyz="0 0 0.3" rpy="0 0 0"/><axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+<joint name="j2" type="prismatic"><parent link="l1"/><child link="l2"/><origin xyz="0.4 0 0" rpy="1.57 0 0"/><axis xyz="0 -1 0"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+</robot>"#
+        .to_vec();
+    vec![arm, params, csv, urdf]
 }
 
 /// Deterministic byte-level mutations: overwrite, insert, delete.
@@ -360,6 +367,7 @@ fn mutate(base: &[u8], seed: u64, edits: usize) -> Vec<u8> {
 pub fn never_panics(bytes: &[u8]) {
     if let Ok(text) = std::str::from_utf8(bytes) {
         let _ = DhTable::from_str(text, "fuzz.toml");
+        let _ = dynid::urdf::import_str(text, "fuzz.urdf", &Default::default());
         for dof in [1, 2, 6] {
             let _ = InertialParams::from_str(text, "fuzz.toml", dof, &ParamsOptions::default());
             let _ = InertialParams::from_str(
@@ -402,4 +410,18 @@ fn fuzz_loaders_for_minutes() {
         seed += 1;
     }
     eprintln!("fuzz: {cases} inputs in {secs} s, no panic");
+}
+
+/// The fuzz seeds must themselves be valid, or mutating them only exercises the first error.
+#[test]
+fn fuzz_seeds_are_valid_inputs() {
+    let seeds = valid_samples();
+    let text = |i: usize| std::str::from_utf8(&seeds[i]).unwrap();
+    DhTable::from_str(text(0), "seed.toml").expect("D-H seed");
+    InertialParams::from_str(text(1), "seed.toml", 1, &ParamsOptions::default())
+        .expect("params seed");
+    Trajectory::from_reader(&seeds[2][..], "seed.csv", Some(1)).expect("CSV seed");
+    let imported =
+        dynid::urdf::import_str(text(3), "seed.urdf", &Default::default()).expect("URDF seed");
+    assert_eq!(imported.table.joints.len(), 2);
 }

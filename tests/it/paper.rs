@@ -506,8 +506,8 @@ fn cli_excite_then_simulate_tracks_the_designed_trajectory() {
     assert_eq!(out.status.code(), Some(2));
 }
 
+/// The main job end to end (`cargo run --release` runs the same; ~10 s).
 #[test]
-#[ignore = "end-to-end reproduction, ~15 s in release; run with --ignored"]
 fn cli_paper_writes_report_results_and_figures() {
     let dir = tempfile::tempdir().unwrap();
     let out = dynid(&["paper", "--quiet", "--out", dir.path().to_str().unwrap()]);
@@ -533,4 +533,116 @@ fn cli_paper_writes_report_results_and_figures() {
         dir.path().join("report.md").exists()
             && dir.path().join("fig16_validation_joint1.svg").exists()
     );
+}
+
+/// `simulate`'s measurement models: an encoder grid, torque noise of the asked size, and a
+/// positions-only log — checked against a noise-free run of the same experiment.
+#[test]
+fn cli_simulate_adds_the_measurement_noise_it_is_asked_for() {
+    let dir = tempfile::tempdir().unwrap();
+    let traj = dir.path().join("sine.json");
+    std::fs::write(
+        &traj,
+        r#"{"kind": "sine", "amplitude": [0.5, -0.4], "omega": [1.0, 1.7], "offset": [0.8, 0.3], "duration": 10.0}"#,
+    )
+    .unwrap();
+    let params = dir.path().join("p.toml");
+    let link =
+        "[[link]]\nm = 1.0\ncom = [1.0, 0.0, 0.0]\ninertia_com = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]\n";
+    std::fs::write(
+        &params,
+        format!("{link}{link}[effects]\nspring = [-3.0, 0.5]\n"),
+    )
+    .unwrap();
+    let run = |extra: &[&str], name: &str| -> Vec<Vec<f64>> {
+        let csv = dir.path().join(name);
+        let mut args = vec![
+            "simulate",
+            "--arm",
+            "planar2",
+            "--params",
+            params.to_str().unwrap(),
+            "--trajectory",
+            traj.to_str().unwrap(),
+            "--out",
+            csv.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        let out = dynid(&args);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let text = std::fs::read_to_string(&csv).unwrap();
+        let mut lines = text.lines();
+        let header = lines.next().unwrap();
+        if extra.contains(&"--positions-only") {
+            assert_eq!(header, "t,q1,q2,tau1,tau2");
+        } else {
+            assert_eq!(header, "t,q1,q2,dq1,dq2,ddq1,ddq2,tau1,tau2");
+        }
+        lines
+            .map(|l| l.split(',').map(|x| x.parse().unwrap()).collect())
+            .collect()
+    };
+    let clean = run(&[], "clean.csv");
+    // the spring of the params file is in the logged torque: τ = ID(θ) + k·q
+    for c in &clean {
+        let mut tau = [0.0; 2];
+        planar2().inverse_dynamics(&c[1..3], &c[3..5], &c[5..7], &THETA, &mut tau);
+        assert!(
+            (tau[0] - 3.0 * c[1] - c[7]).abs() < 1e-9 && (tau[1] + 0.5 * c[2] - c[8]).abs() < 1e-9
+        );
+    }
+    let counts = 4096.0;
+    let noisy = run(
+        &[
+            "--positions-only",
+            "--tau-noise",
+            "0.02",
+            "--encoder-counts",
+            "4096",
+            "--seed",
+            "3",
+        ],
+        "noisy.csv",
+    );
+    assert_eq!(clean.len(), noisy.len());
+    let step = std::f64::consts::TAU / counts;
+    for j in 0..2 {
+        let (mut noise2, mut tau2) = (0.0, 0.0);
+        for (c, n) in clean.iter().zip(&noisy) {
+            // positions on the encoder grid, within half a count of the true ones
+            let k = n[1 + j] / step;
+            assert!(
+                (k - k.round()).abs() < 1e-6,
+                "q{} = {} is not on the grid",
+                j + 1,
+                n[1 + j]
+            );
+            assert!((n[1 + j] - c[1 + j]).abs() <= 0.5 * step + 1e-12);
+            noise2 += (n[3 + j] - c[7 + j]).powi(2);
+            tau2 += c[7 + j].powi(2);
+        }
+        // noise std / torque RMS ≈ 0.02; ~1000 samples → relative std error of the estimate ≈ 2 %
+        let ratio = (noise2 / tau2).sqrt();
+        assert!(
+            (ratio - 0.02).abs() < 0.002,
+            "joint {}: noise ratio {ratio}",
+            j + 1
+        );
+    }
+    let out = dynid(&[
+        "simulate",
+        "--arm",
+        "planar2",
+        "--params",
+        params.to_str().unwrap(),
+        "--trajectory",
+        traj.to_str().unwrap(),
+        "--tau-noise",
+        "-1",
+    ]);
+    assert_eq!(out.status.code(), Some(2));
 }
