@@ -188,6 +188,76 @@ fn batch(c: &mut Criterion) {
     g.finish();
 }
 
+/// SIMD across samples: the lane-batched PUMA kernels (`dynid::pack`, 4 samples per call), time
+/// per *sample* (criterion's throughput) on the same pool, against the scalar kernels called
+/// directly.
+fn lanes(c: &mut Criterion) {
+    use dynid::pack::{gather, Pack, LANES};
+    let pool = puma_pool();
+    let theta = puma_theta();
+    let packed: Vec<[[Pack; 6]; 3]> = pool
+        .chunks_exact(LANES)
+        .map(|s| {
+            let mut out = [[Pack::default(); 6]; 3];
+            gather([&s[0].0, &s[1].0, &s[2].0, &s[3].0], &mut out[0]);
+            gather([&s[0].1, &s[1].1, &s[2].1, &s[3].1], &mut out[1]);
+            gather([&s[0].2, &s[1].2, &s[2].2, &s[3].2], &mut out[2]);
+            out
+        })
+        .collect();
+    let theta_packed = theta.map(Pack::splat);
+
+    let mut g = c.benchmark_group("lanes/puma560/base_regressor");
+    g.throughput(Throughput::Elements(1));
+    g.bench_function("scalar", |b| {
+        let mut out = [0.0; 6 * puma560::NB];
+        let mut i = 0usize;
+        b.iter(|| {
+            let (q, dq, ddq) = black_box(&pool[i & (POOL - 1)]);
+            puma560::base_regressor(q, dq, ddq, &mut out);
+            i = i.wrapping_add(1);
+            black_box(&mut out);
+        })
+    });
+    g.throughput(Throughput::Elements(LANES as u64));
+    g.bench_function("lanes", |b| {
+        let mut out = [Pack::default(); 6 * puma560::NB];
+        let mut i = 0usize;
+        b.iter(|| {
+            let [q, dq, ddq] = black_box(&packed[i % packed.len()]);
+            puma560::base_regressor_lanes(q, dq, ddq, &mut out);
+            i = i.wrapping_add(1);
+            black_box(&mut out);
+        })
+    });
+    g.finish();
+
+    let mut g = c.benchmark_group("lanes/puma560/inverse_dynamics");
+    g.throughput(Throughput::Elements(1));
+    g.bench_function("scalar", |b| {
+        let mut out = [0.0; 6];
+        let mut i = 0usize;
+        b.iter(|| {
+            let (q, dq, ddq) = black_box(&pool[i & (POOL - 1)]);
+            puma560::inverse_dynamics(q, dq, ddq, &theta, &mut out);
+            i = i.wrapping_add(1);
+            black_box(&mut out);
+        })
+    });
+    g.throughput(Throughput::Elements(LANES as u64));
+    g.bench_function("lanes", |b| {
+        let mut out = [Pack::default(); 6];
+        let mut i = 0usize;
+        b.iter(|| {
+            let [q, dq, ddq] = black_box(&packed[i % packed.len()]);
+            puma560::inverse_dynamics_lanes(q, dq, ddq, &theta_packed, &mut out);
+            i = i.wrapping_add(1);
+            black_box(&mut out);
+        })
+    });
+    g.finish();
+}
+
 fn identify(c: &mut Criterion) {
     let arm = dynid::arms::find("puma560").expect("puma560 is built in");
     let mut g = c.benchmark_group("identify");
@@ -206,5 +276,5 @@ fn config() -> Criterion {
         .sample_size(30)
 }
 
-criterion_group! { name = benches; config = config(); targets = kernels, static_dispatch, trig, batch, identify }
+criterion_group! { name = benches; config = config(); targets = kernels, static_dispatch, trig, batch, lanes, identify }
 criterion_main!(benches);

@@ -9,7 +9,9 @@
 //! warm-up repetition, then [`Settings::reps`] timed ones; the median of elapsed/N is reported in
 //! ns per call, single thread. Inputs go through [`std::hint::black_box`] so nothing is hoisted
 //! or folded. `cargo bench` (criterion, `benches/kernels.rs`) is the careful measurement; this is
-//! the quick one (a few seconds plus about one for the identification).
+//! the quick one (a few seconds plus about one for the identification). Each kernel is also timed
+//! lane-batched ([`crate::pack`]: `LANES` samples per call from the same pool), reported per
+//! sample.
 //!
 //! ```no_run
 //! let settings = dynid::bench::Settings::quick();
@@ -29,6 +31,7 @@ use serde::Serialize;
 
 use crate::dh::DhTable;
 use crate::model::Model;
+use crate::pack::{gather, Pack, LANES};
 use crate::reference::{RefModel, Workspace};
 
 pub mod table;
@@ -106,6 +109,11 @@ pub struct KernelTiming {
     pub generated_ns: f64,
     /// Hand-written reference on the same inputs, ns per call (median).
     pub reference_ns: f64,
+    /// The lane-batched generated kernel ([`crate::pack`], `LANES` samples per call) on the
+    /// same pool, ns per *sample* (median). Not in `--json`, whose keys are fixed by issue 7;
+    /// in the human and markdown tables.
+    #[serde(skip)]
+    pub lanes_ns: f64,
 }
 
 /// The streaming identification run.
@@ -135,6 +143,8 @@ pub enum BenchError {
         kernel: &'static str,
         err: f64,
     },
+    #[error("{arm}: a lane of the lane-batched `{kernel}` differs from the scalar kernel — a bug in the lane copy (macros/src/lanes.rs) or in crate::pack")]
+    LanesMismatch { arm: String, kernel: &'static str },
     #[error("{arm}: the built-in D-H table does not parse: {msg}")]
     Table { arm: String, msg: String },
     #[error("identification: the information matrix is singular or ill-conditioned (cond(Yb) = {cond:.3e}) — the excitation does not identify all base parameters")]
@@ -377,6 +387,9 @@ pub struct Case {
     pool: SamplePool,
     p: Vec<f64>,
     theta: Vec<f64>,
+    /// The pool as packs of `LANES` consecutive samples: `[q, dq, ddq]`, each `dof` packs.
+    packed: Vec<[Vec<Pack>; 3]>,
+    theta_packed: Vec<Pack>,
 }
 
 impl Case {
@@ -386,11 +399,28 @@ impl Case {
         let p = plausible_params(arm.dof(), 7);
         let mut theta = vec![0.0; arm.nb()];
         arm.base_params(&p, &mut theta);
+        let packed = (0..POOL / LANES)
+            .map(|c| {
+                let group = |which: usize| {
+                    let mut out = vec![Pack::default(); arm.dof()];
+                    let rows: [&[f64]; LANES] = std::array::from_fn(|l| {
+                        let k = c * LANES + l;
+                        [pool.q(k), pool.dq(k), pool.ddq(k)][which]
+                    });
+                    gather(rows, &mut out);
+                    out
+                };
+                [group(0), group(1), group(2)]
+            })
+            .collect();
+        let theta_packed = theta.iter().map(|&t| Pack::splat(t)).collect();
         Case {
             arm,
             pool,
             p,
             theta,
+            packed,
+            theta_packed,
         }
     }
 
@@ -433,6 +463,41 @@ impl Case {
             Kernel::Gravity => a.gravity(q, th, out),
             Kernel::InverseDynamics => a.inverse_dynamics(q, dq, ddq, th, out),
         }
+    }
+
+    /// The lane-batched generated `kernel` on pool samples `LANES·c … LANES·c + LANES − 1`
+    /// (`c` wraps around the pool; inputs through `black_box`).
+    #[inline]
+    pub fn call_lanes(&self, kernel: Kernel, c: usize, out: &mut [Pack]) {
+        let a = self.arm;
+        let [q, dq, ddq] = black_box(&self.packed[c % self.packed.len()]);
+        let th = &self.theta_packed[..];
+        match kernel {
+            Kernel::Regressor => a.regressor_lanes(q, dq, ddq, out),
+            Kernel::BaseRegressor => a.base_regressor_lanes(q, dq, ddq, out),
+            Kernel::MassMatrix => a.mass_matrix_lanes(q, th, out),
+            Kernel::Bias => a.bias_lanes(q, dq, th, out),
+            Kernel::Gravity => a.gravity_lanes(q, th, out),
+            Kernel::InverseDynamics => a.inverse_dynamics_lanes(q, dq, ddq, th, out),
+        }
+    }
+
+    /// True when every lane of [`Case::call_lanes`] equals [`Case::call_generated`] on its
+    /// sample, bit for bit, over the first few packs.
+    pub fn lanes_match(&self, kernel: Kernel) -> bool {
+        let len = self.out_len(kernel);
+        let mut packed = vec![Pack::default(); len];
+        let (mut want, mut got) = (vec![0.0; len], vec![0.0; len]);
+        (0..4).all(|c| {
+            self.call_lanes(kernel, c, &mut packed);
+            (0..LANES).all(|l| {
+                self.call_generated(kernel, c * LANES + l, &mut want);
+                crate::pack::lane(&packed, l, &mut got);
+                want.iter()
+                    .zip(&got)
+                    .all(|(a, b)| a.to_bits() == b.to_bits())
+            })
+        })
     }
 
     /// The reference `kernel` on pool sample `k` (inputs through `black_box`).
@@ -492,11 +557,22 @@ pub fn measure_arm(
                 err,
             });
         }
+        if !case.lanes_match(kernel) {
+            return Err(BenchError::LanesMismatch {
+                arm: arm.name().to_string(),
+                kernel: kernel.name(),
+            });
+        }
         let mut buf = vec![0.0; case.out_len(kernel)];
         let generated_ns = time_per_call(settings, |i| {
             case.call_generated(kernel, i, &mut buf);
             black_box(&mut buf);
         });
+        let mut packs = vec![Pack::default(); case.out_len(kernel)];
+        let lanes_ns = time_per_call(settings, |c| {
+            case.call_lanes(kernel, c, &mut packs);
+            black_box(&mut packs);
+        }) / LANES as f64;
         let reference_ns = time_per_call(settings, |i| {
             case.call_reference(&mut reference, kernel, i, &mut buf);
             black_box(&mut buf);
@@ -506,6 +582,7 @@ pub fn measure_arm(
             kernel: kernel.name(),
             generated_ns,
             reference_ns,
+            lanes_ns,
         });
     }
     Ok(out)

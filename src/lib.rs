@@ -2,9 +2,10 @@
 //! kernels, and from measured or simulated data to identified dynamic parameters.
 //!
 //! Layout: [`model`] is the contract every generated arm implements, [`arms`] the registry of
-//! generated arms, [`reference`](crate::reference) the hand-written recursive Newton–Euler oracle; [`dh`],
+//! generated arms, [`reference`] the hand-written recursive Newton–Euler oracle; [`dh`],
 //! [`params`] and [`data`] load user files with errors that say where and how to fix; [`io`]
-//! writes outputs atomically; [`cli`] is the command line.
+//! writes outputs atomically; [`pack`] runs every kernel on four samples at once (SIMD across
+//! samples); [`cli`] is the command line.
 
 pub mod arms;
 pub mod bench;
@@ -19,6 +20,7 @@ pub mod excitation;
 pub mod identify;
 pub mod io;
 pub mod model;
+pub mod pack;
 pub mod paper;
 pub mod params;
 pub mod reference;

@@ -14,8 +14,14 @@
 //! - Gravity is the arm's own (from its TOML) and is included in `bias`, `gravity` and
 //!   `inverse_dynamics`: `τ = M(q)·q̈ + bias(q,q̇)`, `bias(q,0) = gravity(q)`.
 //!
+//! - The `*_lanes` methods run the same kernels on [`crate::pack::LANES`] samples at once
+//!   (structure of arrays: `q[j]` holds joint `j` of every sample; see [`crate::pack`]); each lane
+//!   equals the scalar method's result for that sample bit for bit.
+//!
 //! The slice methods panic if a slice has the wrong length: that is a programming error, never a
 //! user-input error (user input is validated before it reaches a kernel).
+
+use crate::pack::Pack;
 
 /// Per-link parameter order (Khalil/Gautier), about the link-frame origin.
 pub const PARAM_ORDER: [&str; 10] = ["XX", "XY", "XZ", "YY", "YZ", "ZZ", "MX", "MY", "MZ", "M"];
@@ -66,4 +72,24 @@ pub trait Model: Send + Sync {
     fn inverse_dynamics(&self, q: &[f64], dq: &[f64], ddq: &[f64], theta: &[f64], out: &mut [f64]);
     /// Base parameters from full parameters: `θ = B·p`.
     fn base_params(&self, p: &[f64], out: &mut [f64]);
+
+    /// [`Model::regressor`] of `LANES` samples.
+    fn regressor_lanes(&self, q: &[Pack], dq: &[Pack], ddq: &[Pack], out: &mut [Pack]);
+    /// [`Model::base_regressor`] of `LANES` samples.
+    fn base_regressor_lanes(&self, q: &[Pack], dq: &[Pack], ddq: &[Pack], out: &mut [Pack]);
+    /// [`Model::mass_matrix`] of `LANES` samples (`theta` per lane; [`Pack::splat`] for one θ).
+    fn mass_matrix_lanes(&self, q: &[Pack], theta: &[Pack], out: &mut [Pack]);
+    /// [`Model::bias`] of `LANES` samples.
+    fn bias_lanes(&self, q: &[Pack], dq: &[Pack], theta: &[Pack], out: &mut [Pack]);
+    /// [`Model::gravity`] of `LANES` samples.
+    fn gravity_lanes(&self, q: &[Pack], theta: &[Pack], out: &mut [Pack]);
+    /// [`Model::inverse_dynamics`] of `LANES` samples.
+    fn inverse_dynamics_lanes(
+        &self,
+        q: &[Pack],
+        dq: &[Pack],
+        ddq: &[Pack],
+        theta: &[Pack],
+        out: &mut [Pack],
+    );
 }

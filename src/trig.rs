@@ -264,6 +264,87 @@ fn quadrant(x: &Lanes, t: &Lanes, s: &Lanes, c: &Lanes) -> (Lanes, Lanes) {
     (so, co)
 }
 
+/// The fast path of [`sin_cos_lanes`] on one AVX register, instruction for instruction the same
+/// operations (so bit for bit the same values): for the lane-batched kernels of
+/// [`crate::pack`], where LLVM does not vectorise the array form inside a long kernel.
+#[cfg(all(
+    target_arch = "x86_64",
+    target_feature = "avx2",
+    target_feature = "fma"
+))]
+pub(crate) mod avx {
+    use super::*;
+    use std::arch::x86_64::*;
+
+    /// `(sin x, cos x)` of the four lanes, or `None` when a lane needs the standard library or
+    /// the exact reduction (`|x| > FAST_PATH_MAX`, NaN, or more than 16 bits cancelled).
+    #[inline(always)]
+    #[allow(unused_unsafe)]
+    pub(crate) fn sin_cos(x: __m256d) -> Option<(__m256d, __m256d)> {
+        // SAFETY: compiled only with AVX2 and FMA enabled for the crate; register operations only.
+        unsafe {
+            let set = |v: f64| _mm256_set1_pd(v);
+            let sign = set(-0.0);
+            let ax = _mm256_andnot_pd(sign, x);
+            if _mm256_movemask_pd(_mm256_cmp_pd(ax, set(FAST_PATH_MAX), _CMP_LE_OQ)) != 0xF {
+                return None;
+            }
+            let t = _mm256_fmadd_pd(ax, set(INV_PIO2), set(TOINT));
+            let f = _mm256_sub_pd(t, set(TOINT));
+            // mul_add(-f, PIO2_1, a): fnmadd rounds −(f·c) + a once, the same value.
+            let r = _mm256_fnmadd_pd(f, set(PIO2_1), ax);
+            let w = _mm256_mul_pd(f, set(PIO2_1T));
+            let y0 = _mm256_sub_pd(r, w);
+            let lost = _mm256_cmp_pd(
+                _mm256_andnot_pd(sign, y0),
+                _mm256_mul_pd(ax, set(CANCEL_16)),
+                _CMP_LT_OQ,
+            );
+            if _mm256_movemask_pd(lost) != 0 {
+                return None;
+            }
+            let y1 = _mm256_sub_pd(_mm256_sub_pd(r, y0), w);
+            // kernel
+            let z = _mm256_mul_pd(y0, y0);
+            let z2 = _mm256_mul_pd(z, z);
+            let z4 = _mm256_mul_pd(z2, z2);
+            let poly = |c0: f64, c1: f64, c2: f64, c3: f64, c4: f64, c5: f64| {
+                let a = _mm256_fmadd_pd(set(c1), z, set(c0));
+                let b = _mm256_fmadd_pd(set(c3), z, set(c2));
+                let c = _mm256_fmadd_pd(set(c5), z, set(c4));
+                _mm256_fmadd_pd(z4, c, _mm256_fmadd_pd(z2, b, a))
+            };
+            let p = poly(S1, S2, S3, S4, S5, S6);
+            let q = poly(C1, C2, C3, C4, C5, C6);
+            let v = _mm256_mul_pd(z, y0);
+            let hz = _mm256_mul_pd(set(0.5), z);
+            let tail = _mm256_fnmadd_pd(hz, y1, y1);
+            let s = _mm256_add_pd(y0, _mm256_fmadd_pd(v, p, tail));
+            let one_m_hz = _mm256_sub_pd(set(1.0), hz);
+            let small =
+                _mm256_fnmadd_pd(y0, y1, _mm256_sub_pd(_mm256_sub_pd(set(1.0), one_m_hz), hz));
+            let c = _mm256_add_pd(one_m_hz, _mm256_fmadd_pd(z2, q, small));
+            // quadrant
+            let n = _mm256_castpd_si256(t);
+            let one = _mm256_set1_epi64x(1);
+            let two = _mm256_set1_epi64x(2);
+            let swap = _mm256_sub_epi64(_mm256_setzero_si256(), _mm256_and_si256(n, one));
+            let (sb, cb) = (_mm256_castpd_si256(s), _mm256_castpd_si256(c));
+            let s2 = _mm256_or_si256(_mm256_andnot_si256(swap, sb), _mm256_and_si256(cb, swap));
+            let c2 = _mm256_or_si256(_mm256_andnot_si256(swap, cb), _mm256_and_si256(sb, swap));
+            let s_sign = _mm256_xor_si256(
+                _mm256_slli_epi64::<62>(_mm256_and_si256(n, two)),
+                _mm256_and_si256(_mm256_castpd_si256(x), _mm256_castpd_si256(sign)),
+            );
+            let c_sign = _mm256_slli_epi64::<62>(_mm256_and_si256(_mm256_add_epi64(n, one), two));
+            Some((
+                _mm256_castsi256_pd(_mm256_xor_si256(s2, s_sign)),
+                _mm256_castsi256_pd(_mm256_xor_si256(c2, c_sign)),
+            ))
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -30,6 +30,7 @@ use syn::parse::{Parse, ParseStream};
 use syn::{Ident, Item, LitStr, Token};
 
 mod hash;
+mod lanes;
 
 struct ArmArgs {
     name: Ident,
@@ -89,6 +90,16 @@ const REQUIRED_FNS: [&str; 7] = [
     "gravity",
     "inverse_dynamics",
     "base_params",
+];
+
+/// The kernels that also get a lane-batched copy (`<name>_lanes`).
+const KERNELS: [&str; 6] = [
+    "regressor",
+    "base_regressor",
+    "mass_matrix",
+    "bias",
+    "gravity",
+    "inverse_dynamics",
 ];
 
 fn root_dir(args: &ArmArgs) -> Result<PathBuf, String> {
@@ -151,6 +162,16 @@ fn expand(args: &ArmArgs) -> Result<proc_macro2::TokenStream, String> {
     check_items(&arm, &gen_rel, &file.items, &fix)?;
 
     let items = &file.items;
+    // Lane-batched copies of the kernels (not of `base_params`, which runs once per fit).
+    let lane_fns: Vec<syn::ItemFn> = items
+        .iter()
+        .filter_map(|item| match item {
+            Item::Fn(f) if KERNELS.contains(&f.sig.ident.to_string().as_str()) => {
+                Some(lanes::lane_copy(f))
+            }
+            _ => None,
+        })
+        .collect();
     let module = format_ident!("{}", arm);
     let type_name = format_ident!("{}", hash::camel_case(&arm));
     let gen_str = path_str(&gen_path);
@@ -186,6 +207,8 @@ fn expand(args: &ArmArgs) -> Result<proc_macro2::TokenStream, String> {
 
             #(#items)*
 
+            #(#lane_fns)*
+
             const _OP_COUNTS: [crate::model::OpCount; OP_COUNTS.len()] = {
                 let mut out = [crate::model::OpCount { kernel: "", mul: 0, add: 0 }; OP_COUNTS.len()];
                 let mut i = 0;
@@ -203,21 +226,23 @@ fn expand(args: &ArmArgs) -> Result<proc_macro2::TokenStream, String> {
             }
 
             #[inline(always)]
-            fn _arr<'a, const N: usize>(s: &'a [f64], what: &str) -> &'a [f64; N] {
-                match <&[f64; N]>::try_from(s) {
+            fn _arr<'a, T, const N: usize>(s: &'a [T], what: &str) -> &'a [T; N] {
+                match <&[T; N]>::try_from(s) {
                     Ok(a) => a,
                     Err(_) => _bad_len(what, s.len(), N),
                 }
             }
 
             #[inline(always)]
-            fn _arr_mut<'a, const N: usize>(s: &'a mut [f64], what: &str) -> &'a mut [f64; N] {
+            fn _arr_mut<'a, T, const N: usize>(s: &'a mut [T], what: &str) -> &'a mut [T; N] {
                 let len = s.len();
-                match <&mut [f64; N]>::try_from(s) {
+                match <&mut [T; N]>::try_from(s) {
                     Ok(a) => a,
                     Err(_) => _bad_len(what, len, N),
                 }
             }
+
+            type P = crate::pack::Pack;
 
             #[doc = #type_doc]
             #[derive(Debug, Clone, Copy, Default)]
@@ -253,6 +278,24 @@ fn expand(args: &ArmArgs) -> Result<proc_macro2::TokenStream, String> {
                 }
                 fn base_params(&self, p: &[f64], out: &mut [f64]) {
                     base_params(_arr(p, "p"), _arr_mut(out, "out"))
+                }
+                fn regressor_lanes(&self, q: &[P], dq: &[P], ddq: &[P], out: &mut [P]) {
+                    regressor_lanes(_arr(q, "q"), _arr(dq, "dq"), _arr(ddq, "ddq"), _arr_mut(out, "out"))
+                }
+                fn base_regressor_lanes(&self, q: &[P], dq: &[P], ddq: &[P], out: &mut [P]) {
+                    base_regressor_lanes(_arr(q, "q"), _arr(dq, "dq"), _arr(ddq, "ddq"), _arr_mut(out, "out"))
+                }
+                fn mass_matrix_lanes(&self, q: &[P], theta: &[P], out: &mut [P]) {
+                    mass_matrix_lanes(_arr(q, "q"), _arr(theta, "theta"), _arr_mut(out, "out"))
+                }
+                fn bias_lanes(&self, q: &[P], dq: &[P], theta: &[P], out: &mut [P]) {
+                    bias_lanes(_arr(q, "q"), _arr(dq, "dq"), _arr(theta, "theta"), _arr_mut(out, "out"))
+                }
+                fn gravity_lanes(&self, q: &[P], theta: &[P], out: &mut [P]) {
+                    gravity_lanes(_arr(q, "q"), _arr(theta, "theta"), _arr_mut(out, "out"))
+                }
+                fn inverse_dynamics_lanes(&self, q: &[P], dq: &[P], ddq: &[P], theta: &[P], out: &mut [P]) {
+                    inverse_dynamics_lanes(_arr(q, "q"), _arr(dq, "dq"), _arr(ddq, "ddq"), _arr(theta, "theta"), _arr_mut(out, "out"))
                 }
             }
         }

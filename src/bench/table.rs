@@ -171,9 +171,15 @@ pub fn evaluate(report: &Report, pin: &PinocchioTimes) -> Vec<(String, String, b
                 };
                 let g = k.generated_ns;
                 rows.push((
-                    format!("{arm}: {kernel} ≤ {ns} ns"),
+                    format!("{arm}: {kernel} ≤ {ns} ns (one call)"),
                     format!("{g:.1} ns"),
                     g <= ns,
+                ));
+                let l = k.lanes_ns;
+                rows.push((
+                    format!("{arm}: {kernel} ≤ {ns} ns per sample, lane-batched"),
+                    format!("{l:.1} ns"),
+                    l <= ns,
                 ));
             }
             Target::VsReference { ratio } => {
@@ -184,10 +190,20 @@ pub fn evaluate(report: &Report, pin: &PinocchioTimes) -> Vec<(String, String, b
                 };
                 let r = worst.reference_ns / worst.generated_ns;
                 rows.push((
-                    format!("every generated kernel ≥ {ratio}× the reference"),
+                    format!("every generated kernel ≥ {ratio}× the reference (one call)"),
                     format!("lowest {r:.1}× ({} {})", worst.arm, worst.kernel),
                     r >= ratio,
                 ));
+                if let Some(worst) = report.kernels.iter().min_by(|a, b| {
+                    (a.reference_ns / a.lanes_ns).total_cmp(&(b.reference_ns / b.lanes_ns))
+                }) {
+                    let r = worst.reference_ns / worst.lanes_ns;
+                    rows.push((
+                        format!("every generated kernel ≥ {ratio}× the reference (lane-batched, per sample)"),
+                        format!("lowest {r:.1}× ({} {})", worst.arm, worst.kernel),
+                        r >= ratio,
+                    ));
+                }
             }
             Target::IdentifySeconds { seconds } => {
                 let i = &report.identify;
@@ -267,10 +283,11 @@ pub fn markdown(report: &Report, pin: &PinocchioTimes, info: &RunInfo) -> String
          *Pinocchio*: Pinocchio 4.1 C++ (`-O3 -march=native`, header-only) measured in the same run by \
          `../shared/anchors/pinocchio/run.sh` (base regressor vs its full regressor, M vs CRBA, bias vs \
          `nonLinearEffects`, inverse dynamics vs RNEA). Operation counts are the generator's (binary \
-         `*` `/` and `+` `−`).\n"
+         `*` `/` and `+` `−`). *lanes*: the same generated kernel batched over 4 samples per call \
+         (`dynid::pack`, one AVX instruction per operation), ns per *sample*.\n"
     );
-    let _ = writeln!(s, "| arm | kernel | mul / add | generated | reference | Pinocchio | reference / generated | Pinocchio / generated |");
-    let _ = writeln!(s, "|---|---|---|---:|---:|---:|---:|---:|");
+    let _ = writeln!(s, "| arm | kernel | mul / add | generated | lanes (per sample) | reference | Pinocchio | reference / generated | Pinocchio / generated | Pinocchio / lanes |");
+    let _ = writeln!(s, "|---|---|---|---:|---:|---:|---:|---:|---:|---:|");
     for k in &report.kernels {
         let ops = crate::arms::find(&k.arm)
             .and_then(|m| {
@@ -283,15 +300,17 @@ pub fn markdown(report: &Report, pin: &PinocchioTimes, info: &RunInfo) -> String
         let p = pin.get(&k.arm, k.kernel);
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {:.1} | {:.1} | {} | {:.1}× | {} |",
+            "| {} | {} | {} | {:.1} | {:.1} | {:.1} | {} | {:.1}× | {} | {} |",
             k.arm,
             k.kernel,
             ops,
             k.generated_ns,
+            k.lanes_ns,
             k.reference_ns,
             p.map_or("—".into(), |v| format!("{v:.0}")),
             k.reference_ns / k.generated_ns,
-            ratio(p, k.generated_ns)
+            ratio(p, k.generated_ns),
+            ratio(p, k.lanes_ns)
         );
     }
     let i = &report.identify;
@@ -343,8 +362,9 @@ pub fn svg(report: &Report, pin: &PinocchioTimes) -> Result<String, String> {
         let root = SVGBackend::with_string(&mut buf, (w, h)).into_drawing_area();
         root.fill(&WHITE).map_err(|e| e.to_string())?;
         let panels = root.split_evenly((rows, cols));
-        let series: [(&str, RGBColor); 3] = [
+        let series: [(&str, RGBColor); 4] = [
             ("generated", RGBColor(31, 119, 180)),
+            ("lanes, per sample", RGBColor(148, 103, 189)),
             ("reference", RGBColor(255, 127, 14)),
             ("Pinocchio", RGBColor(44, 160, 44)),
         ];
@@ -398,12 +418,13 @@ pub fn svg(report: &Report, pin: &PinocchioTimes) -> Result<String, String> {
                         let k = find(report, arm, kernel.name())?;
                         let v = match si {
                             0 => Some(k.generated_ns),
-                            1 => Some(k.reference_ns),
+                            1 => Some(k.lanes_ns),
+                            2 => Some(k.reference_ns),
                             _ => pin.get(arm, kernel.name()),
                         }?;
-                        let x0 = ki as f64 + 0.1 + 0.27 * si as f64;
+                        let x0 = ki as f64 + 0.08 + 0.21 * si as f64;
                         Some(Rectangle::new(
-                            [(x0, 1.0), (x0 + 0.25, v.max(1.0))],
+                            [(x0, 1.0), (x0 + 0.19, v.max(1.0))],
                             color.filled(),
                         ))
                     })
@@ -440,6 +461,7 @@ mod tests {
             kernel,
             generated_ns: g,
             reference_ns: r,
+            lanes_ns: g / 4.0,
         };
         Report {
             kernels: vec![
@@ -492,8 +514,11 @@ mod tests {
             &RunInfo::default(),
         );
         assert!(md.contains("| puma560 | base_regressor |"));
-        assert!(md.contains("| 1160 | 16.0× | 11.6× |"), "{md}");
-        assert!(md.contains("| puma560 | gravity |") && md.contains("| — | 15.0× | — |"));
+        assert!(
+            md.contains("| 100.0 | 25.0 | 1600.0 | 1160 | 16.0× | 11.6× | 46.4× |"),
+            "{md}"
+        );
+        assert!(md.contains("| puma560 | gravity |") && md.contains("| — | 15.0× | — | — |"));
         assert!(md.contains("scripts/bench_table.sh"));
     }
 

@@ -124,3 +124,78 @@ fn planar2_base_regressor_is_the_paper_phi() {
         assert_close(&theta, &planar2_theta(&p), 1e-15, "planar2 θ");
     }
 }
+
+/// The lane-batched kernels (`dynid::pack`): every lane is bit for bit the scalar kernel on that
+/// sample, for every arm and kernel, with a different θ per lane; lanes include angles beyond
+/// the trigonometry's fast path so that its per-lane fallback is exercised too.
+#[test]
+fn lane_kernels_equal_the_scalar_kernels_bit_for_bit() {
+    use dynid::pack::{gather, lane, Pack, LANES};
+    let mut r = rng(77);
+    for &m in dynid::arms::all() {
+        let (n, np, nb) = (m.dof(), m.np(), m.nb());
+        for round in 0..50 {
+            // (q, dq, ddq, θ) per lane
+            let samples: Vec<[Vec<f64>; 4]> = (0..LANES)
+                .map(|l| {
+                    let (mut q, dq, ddq) = random_state(&mut r, n);
+                    if round == 0 && l == 1 {
+                        q[0] = 3.0e6; // slow path in one lane only
+                    }
+                    let theta: Vec<f64> = (0..nb).map(|_| r.gen_range(-2.0..2.0)).collect();
+                    [q, dq, ddq, theta]
+                })
+                .collect();
+            let pack = |k: usize, len: usize| {
+                let mut out = vec![Pack::default(); len];
+                let rows: [&[f64]; LANES] = std::array::from_fn(|l| {
+                    let s = &samples[l];
+                    &s[k][..]
+                });
+                gather(rows, &mut out);
+                out
+            };
+            let (q, dq, ddq, th) = (pack(0, n), pack(1, n), pack(2, n), pack(3, nb));
+            let check = |name: &str, packed: &[Pack], scalar: &dyn Fn(usize, &mut [f64])| {
+                let mut want = vec![0.0; packed.len()];
+                let mut got = vec![0.0; packed.len()];
+                for l in 0..LANES {
+                    scalar(l, &mut want);
+                    lane(packed, l, &mut got);
+                    let same = want
+                        .iter()
+                        .zip(&got)
+                        .all(|(a, b)| a.to_bits() == b.to_bits());
+                    assert!(same, "{} {name} lane {l}: {got:?} vs {want:?}", m.name());
+                }
+            };
+            let s = &samples;
+            let mut out = vec![Pack::default(); n * np];
+            m.regressor_lanes(&q, &dq, &ddq, &mut out);
+            check("regressor", &out, &|l, o| {
+                m.regressor(&s[l][0], &s[l][1], &s[l][2], o)
+            });
+            let mut out = vec![Pack::default(); n * nb];
+            m.base_regressor_lanes(&q, &dq, &ddq, &mut out);
+            check("base_regressor", &out, &|l, o| {
+                m.base_regressor(&s[l][0], &s[l][1], &s[l][2], o)
+            });
+            let mut out = vec![Pack::default(); n * n];
+            m.mass_matrix_lanes(&q, &th, &mut out);
+            check("mass_matrix", &out, &|l, o| {
+                m.mass_matrix(&s[l][0], &s[l][3], o)
+            });
+            let mut out = vec![Pack::default(); n];
+            m.bias_lanes(&q, &dq, &th, &mut out);
+            check("bias", &out, &|l, o| {
+                m.bias(&s[l][0], &s[l][1], &s[l][3], o)
+            });
+            m.gravity_lanes(&q, &th, &mut out);
+            check("gravity", &out, &|l, o| m.gravity(&s[l][0], &s[l][3], o));
+            m.inverse_dynamics_lanes(&q, &dq, &ddq, &th, &mut out);
+            check("inverse_dynamics", &out, &|l, o| {
+                m.inverse_dynamics(&s[l][0], &s[l][1], &s[l][2], &s[l][3], o)
+            });
+        }
+    }
+}
