@@ -940,7 +940,39 @@ pub fn identify_streaming(
     let (mut q, mut dq, mut ddq, mut tau) =
         (vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]);
     let mut yb = vec![0.0; n * nb];
-    for k in 0..samples {
+    // Four samples per kernel call (crate::pack), in sample order; the tail one by one.
+    let theta_p: Vec<Pack> = theta.iter().map(|&t| Pack::splat(t)).collect();
+    let (mut qp, mut dqp, mut ddqp) = (
+        vec![Pack::default(); n],
+        vec![Pack::default(); n],
+        vec![Pack::default(); n],
+    );
+    let (mut taup, mut ybp) = (vec![Pack::default(); n], vec![Pack::default(); n * nb]);
+    let mut rows = vec![vec![0.0; 3 * n]; LANES];
+    let full = samples / LANES * LANES;
+    for k0 in (0..full).step_by(LANES) {
+        for (l, row) in rows.iter_mut().enumerate() {
+            let (a, rest) = row.split_at_mut(n);
+            let (b, c) = rest.split_at_mut(n);
+            traj.eval((k0 + l) as f64 * 1e-3, a, b, c);
+        }
+        for (j, ((qj, dqj), ddqj)) in qp.iter_mut().zip(&mut dqp).zip(&mut ddqp).enumerate() {
+            *qj = Pack::new(std::array::from_fn(|l| rows[l][j]));
+            *dqj = Pack::new(std::array::from_fn(|l| rows[l][n + j]));
+            *ddqj = Pack::new(std::array::from_fn(|l| rows[l][2 * n + j]));
+        }
+        arm.inverse_dynamics_lanes(&qp, &dqp, &ddqp, &theta_p, &mut taup);
+        arm.base_regressor_lanes(&qp, &dqp, &ddqp, &mut ybp);
+        for l in 0..LANES {
+            crate::pack::lane(&taup, l, &mut tau);
+            for t in tau.iter_mut() {
+                *t += noise * (2.0 * rng.uniform() - 1.0);
+            }
+            crate::pack::lane(&ybp, l, &mut yb);
+            ne.add(&yb, &tau);
+        }
+    }
+    for k in full..samples {
         traj.eval(k as f64 * 1e-3, &mut q, &mut dq, &mut ddq);
         arm.inverse_dynamics(&q, &dq, &ddq, &theta, &mut tau);
         for t in tau.iter_mut() {
