@@ -266,6 +266,30 @@ fn each_effect_is_detected_on_the_right_joint() {
     }
 }
 
+/// A 6-DOF arm with two undeclared effects at once (viscous friction on the shoulder, a torque
+/// offset on the wrist): exactly those two are found, with their values.
+#[test]
+fn puma_with_two_undeclared_effects_finds_exactly_them() {
+    let spec = Spec {
+        duration: 12.0,
+        rate_hz: 200.0,
+        ..Spec::new(arm_table("puma560"), 61)
+    }
+    .with_effect(Effect::Viscous, 1, 0.8)
+    .with_effect(Effect::Offset, 4, 0.15);
+    let (o, _) = run_synth(&spec, &Config::default());
+    assert_eq!(found(&o), ["offset5", "viscous2"], "found {:?}", found(&o));
+    for (label, truth) in [("viscous2", 0.8), ("offset5", 0.15)] {
+        let v = coef(&o, label);
+        assert!((v - truth).abs() < 0.1 * truth, "{label} = {v} (truth {truth})");
+    }
+    let (before, after) = (
+        o.before.validation.as_ref().unwrap().overall,
+        o.after.validation.as_ref().unwrap().overall,
+    );
+    assert!(after < 0.5 * before, "validation {before} -> {after}");
+}
+
 /// Armature on joint 1 (fixed axis) is the ZZR1 column: reported as merged, never found, and the
 /// data are still fitted (ZZR1 absorbs it).
 #[test]
