@@ -281,7 +281,10 @@ fn puma_with_two_undeclared_effects_finds_exactly_them() {
     assert_eq!(found(&o), ["offset5", "viscous2"], "found {:?}", found(&o));
     for (label, truth) in [("viscous2", 0.8), ("offset5", 0.15)] {
         let v = coef(&o, label);
-        assert!((v - truth).abs() < 0.1 * truth, "{label} = {v} (truth {truth})");
+        assert!(
+            (v - truth).abs() < 0.1 * truth,
+            "{label} = {v} (truth {truth})"
+        );
     }
     let (before, after) = (
         o.before.validation.as_ref().unwrap().overall,
