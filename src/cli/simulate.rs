@@ -77,38 +77,6 @@ pub struct Args {
     pub out: Option<PathBuf>,
 }
 
-/// Applies `--tau-noise` and `--encoder-counts` to the logged `q` and `tau` (row-major, `n` per row).
-fn add_measurement_noise(args: &Args, kinds: &[bool], q: &mut [f64], tau: &mut [f64]) {
-    use rand::SeedableRng;
-    use rand_distr::{Distribution, Normal};
-    // Row-major log: joint j's samples are every n-th value from j.
-    let n = kinds.len();
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(args.seed);
-    if args.tau_noise > 0.0 {
-        let rows = tau.len() / n;
-        for j in 0..n {
-            let rms = (tau.iter().skip(j).step_by(n).map(|v| v * v).sum::<f64>()
-                / rows.max(1) as f64)
-                .sqrt();
-            if let Ok(normal) = Normal::new(0.0, args.tau_noise * rms) {
-                for v in tau.iter_mut().skip(j).step_by(n) {
-                    *v += normal.sample(&mut rng);
-                }
-            }
-        }
-    }
-    if let Some(counts) = args.encoder_counts {
-        for (i, v) in q.iter_mut().enumerate() {
-            let step = if kinds[i % n] {
-                std::f64::consts::TAU / counts
-            } else {
-                1.0 / counts
-            };
-            *v = (*v / step).round() * step;
-        }
-    }
-}
-
 fn base_params(model: &dyn crate::model::Model, params: &InertialParams) -> Vec<f64> {
     let mut theta = vec![0.0; model.nb()];
     model.base_params(&params.full_vector(), &mut theta);
@@ -234,7 +202,27 @@ pub fn run(args: &Args) -> Result<()> {
         .iter()
         .map(|j| j.kind == crate::dh::JointKind::Revolute)
         .collect();
-    add_measurement_noise(args, &revolute, &mut log.q, &mut log.tau);
+    let resolution: Option<Vec<f64>> = args.encoder_counts.map(|counts| {
+        revolute
+            .iter()
+            .map(|&r| {
+                if r {
+                    std::f64::consts::TAU / counts
+                } else {
+                    1.0 / counts
+                }
+            })
+            .collect()
+    });
+    let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(args.seed);
+    crate::identify::synth::add_measurement_noise(
+        n,
+        &mut log.q,
+        &mut log.tau,
+        args.tau_noise,
+        resolution.as_deref(),
+        &mut rng,
+    );
 
     let signals: Vec<(&str, &[f64])> = if args.positions_only {
         vec![("q", &log.q), ("tau", &log.tau)]

@@ -183,6 +183,32 @@ fn gauss(rng: &mut ChaCha8Rng) -> f64 {
     (-2.0 * u1.ln()).sqrt() * (2.0 * PI * u2).cos()
 }
 
+/// Measurement noise on a row-major log of `n` joints (`q[k·n + j]`): white Gaussian torque noise
+/// of `tau_noise` × each joint's RMS torque, then positions rounded to `resolution[j]` (an
+/// encoder's step, rad or m). Shared by [`generate`] and `dynid simulate`.
+pub fn add_measurement_noise(
+    n: usize,
+    q: &mut [f64],
+    tau: &mut [f64],
+    tau_noise: f64,
+    resolution: Option<&[f64]>,
+    rng: &mut ChaCha8Rng,
+) {
+    let len = tau.len() / n.max(1);
+    for j in 0..n {
+        let rms =
+            ((0..len).map(|k| tau[k * n + j].powi(2)).sum::<f64>() / len.max(1) as f64).sqrt();
+        for k in 0..len {
+            tau[k * n + j] += tau_noise * rms * gauss(rng);
+        }
+    }
+    if let Some(res) = resolution {
+        for (i, v) in q.iter_mut().enumerate() {
+            *v = (*v / res[i % n]).round() * res[i % n];
+        }
+    }
+}
+
 /// Simulates `spec` (see the module docs).
 pub fn generate(spec: &Spec) -> Trajectory {
     let table = &spec.table;
@@ -238,15 +264,15 @@ pub fn generate(spec: &Spec) -> Trajectory {
         tau.extend_from_slice(&ts);
         tk += dt * (1.0 + spec.jitter * rng.gen_range(-1.0..1.0));
     }
-    for j in 0..n {
-        let rms = ((0..len).map(|k| tau[k * n + j].powi(2)).sum::<f64>() / len as f64).sqrt();
-        for k in 0..len {
-            tau[k * n + j] += spec.tau_noise * rms * gauss(&mut rng);
-        }
-    }
-    if let Some(res) = spec.q_resolution {
-        q.iter_mut().for_each(|v| *v = (*v / res).round() * res);
-    }
+    let resolution = spec.q_resolution.map(|r| vec![r; n]);
+    add_measurement_noise(
+        n,
+        &mut q,
+        &mut tau,
+        spec.tau_noise,
+        resolution.as_deref(),
+        &mut rng,
+    );
     Trajectory {
         source: format!("synthetic:{}:seed{}", table.name, spec.seed),
         dof: n,
