@@ -948,19 +948,24 @@ pub fn identify_streaming(
         vec![Pack::default(); n],
     );
     let (mut taup, mut ybp) = (vec![Pack::default(); n], vec![Pack::default(); n * nb]);
-    let mut rows = vec![vec![0.0; 3 * n]; LANES];
+    let (mut qs, mut dqs, mut ddqs) = (
+        vec![vec![0.0; n]; LANES],
+        vec![vec![0.0; n]; LANES],
+        vec![vec![0.0; n]; LANES],
+    );
     let full = samples / LANES * LANES;
     for k0 in (0..full).step_by(LANES) {
-        for (l, row) in rows.iter_mut().enumerate() {
-            let (a, rest) = row.split_at_mut(n);
-            let (b, c) = rest.split_at_mut(n);
-            traj.eval((k0 + l) as f64 * 1e-3, a, b, c);
+        for l in 0..LANES {
+            traj.eval(
+                (k0 + l) as f64 * 1e-3,
+                &mut qs[l],
+                &mut dqs[l],
+                &mut ddqs[l],
+            );
         }
-        for (j, ((qj, dqj), ddqj)) in qp.iter_mut().zip(&mut dqp).zip(&mut ddqp).enumerate() {
-            *qj = Pack::new(std::array::from_fn(|l| rows[l][j]));
-            *dqj = Pack::new(std::array::from_fn(|l| rows[l][n + j]));
-            *ddqj = Pack::new(std::array::from_fn(|l| rows[l][2 * n + j]));
-        }
+        gather(std::array::from_fn(|l| &qs[l][..]), &mut qp);
+        gather(std::array::from_fn(|l| &dqs[l][..]), &mut dqp);
+        gather(std::array::from_fn(|l| &ddqs[l][..]), &mut ddqp);
         arm.inverse_dynamics_lanes(&qp, &dqp, &ddqp, &theta_p, &mut taup);
         arm.base_regressor_lanes(&qp, &dqp, &ddqp, &mut ybp);
         for l in 0..LANES {
