@@ -2,6 +2,8 @@
 //! GA's determinism, the plant and the controllers, the least squares, and the iteration's
 //! convergence — each against an independent oracle (closed forms, finite differences, energy).
 
+use std::path::Path;
+
 use dynid::control::{Ctc, Pd, Rhftc, RhftcGains, SignConvention};
 
 use dynid::excitation::{minimize, GaConfig};
@@ -407,6 +409,28 @@ fn dynid(args: &[&str]) -> std::process::Output {
         .unwrap()
 }
 
+/// `dynid simulate --arm planar2 --params P --trajectory T EXTRA…`.
+fn simulate_planar2(params: &Path, traj: &Path, extra: &[&str]) -> std::process::Output {
+    let mut args = vec![
+        "simulate",
+        "--arm",
+        "planar2",
+        "--params",
+        params.to_str().unwrap(),
+        "--trajectory",
+        traj.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    dynid(&args)
+}
+
+/// The paper's arm as point masses at the link ends (θ = [2, 2, 0, 1, 1, 0]), plus `extra` TOML.
+fn point_mass_params(path: &Path, extra: &str) {
+    let link =
+        "[[link]]\nm = 1.0\ncom = [1.0, 0.0, 0.0]\ninertia_com = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]\n";
+    std::fs::write(path, format!("{link}{link}{extra}")).unwrap();
+}
+
 #[test]
 fn cli_excite_then_simulate_tracks_the_designed_trajectory() {
     let dir = tempfile::tempdir().unwrap();
@@ -432,21 +456,9 @@ fn cli_excite_then_simulate_tracks_the_designed_trajectory() {
 
     // point masses at the link ends: ZZR1 = MXR1 = 2, ZZ2 = MX2 = 1 (the paper's θ)
     let params = dir.path().join("p.toml");
-    let link =
-        "[[link]]\nm = 1.0\ncom = [1.0, 0.0, 0.0]\ninertia_com = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]\n";
-    std::fs::write(&params, format!("{link}{link}")).unwrap();
+    point_mass_params(&params, "");
     let csv = dir.path().join("sim.csv");
-    let out = dynid(&[
-        "simulate",
-        "--arm",
-        "planar2",
-        "--params",
-        params.to_str().unwrap(),
-        "--trajectory",
-        ex.to_str().unwrap(),
-        "--out",
-        csv.to_str().unwrap(),
-    ]);
+    let out = simulate_planar2(&params, &ex, &["--out", csv.to_str().unwrap()]);
     assert!(
         out.status.success(),
         "{}",
@@ -479,15 +491,7 @@ fn cli_excite_then_simulate_tracks_the_designed_trajectory() {
     assert!(rows > 100);
 
     // bad input is an error with exit code 2, not a panic
-    let out = dynid(&[
-        "simulate",
-        "--arm",
-        "planar2",
-        "--params",
-        params.to_str().unwrap(),
-        "--trajectory",
-        params.to_str().unwrap(),
-    ]);
+    let out = simulate_planar2(&params, &params, &[]);
     assert_eq!(
         out.status.code(),
         Some(2),
@@ -547,28 +551,12 @@ fn cli_simulate_adds_the_measurement_noise_it_is_asked_for() {
     )
     .unwrap();
     let params = dir.path().join("p.toml");
-    let link =
-        "[[link]]\nm = 1.0\ncom = [1.0, 0.0, 0.0]\ninertia_com = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]\n";
-    std::fs::write(
-        &params,
-        format!("{link}{link}[effects]\nspring = [-3.0, 0.5]\n"),
-    )
-    .unwrap();
+    point_mass_params(&params, "[effects]\nspring = [-3.0, 0.5]\n");
     let run = |extra: &[&str], name: &str| -> Vec<Vec<f64>> {
         let csv = dir.path().join(name);
-        let mut args = vec![
-            "simulate",
-            "--arm",
-            "planar2",
-            "--params",
-            params.to_str().unwrap(),
-            "--trajectory",
-            traj.to_str().unwrap(),
-            "--out",
-            csv.to_str().unwrap(),
-        ];
+        let mut args = vec!["--out", csv.to_str().unwrap()];
         args.extend_from_slice(extra);
-        let out = dynid(&args);
+        let out = simulate_planar2(&params, &traj, &args);
         assert!(
             out.status.success(),
             "{}",
@@ -633,16 +621,6 @@ fn cli_simulate_adds_the_measurement_noise_it_is_asked_for() {
             j + 1
         );
     }
-    let out = dynid(&[
-        "simulate",
-        "--arm",
-        "planar2",
-        "--params",
-        params.to_str().unwrap(),
-        "--trajectory",
-        traj.to_str().unwrap(),
-        "--tau-noise",
-        "-1",
-    ]);
+    let out = simulate_planar2(&params, &traj, &["--tau-noise", "-1"]);
     assert_eq!(out.status.code(), Some(2));
 }
