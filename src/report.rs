@@ -456,7 +456,8 @@ fn residual_plot(o: &Outcome, j: usize) -> Result<String, String> {
             .map_err(|e| e.to_string())?;
         chart
             .configure_mesh()
-            .x_desc(format!("q̇{} (rad/s)", j + 1))
+            // Plain ASCII: the combining dot of q̇ is lost by common SVG fonts (it rendered as "q1").
+            .x_desc(format!("joint velocity dq{}/dt (rad/s)", j + 1))
             .y_desc("τ measured − τ predicted (N·m)")
             .draw()
             .map_err(|e| e.to_string())?;
