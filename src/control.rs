@@ -113,6 +113,11 @@ struct ModelLaw<'a> {
 pub const LOADING_FLOOR: f64 = 0.05;
 
 impl<'a> ModelLaw<'a> {
+    /// `count` as a fraction of the control steps so far (0 before the first step).
+    fn fraction(&self, count: usize) -> f64 {
+        count as f64 / self.steps.max(1) as f64
+    }
+
     /// Whether `M̂ + shift·I` is positive definite.
     fn is_pd_with_shift(&mut self, n: usize, shift: f64) -> bool {
         self.chol.copy_from_slice(&self.m);
@@ -207,12 +212,12 @@ impl<'a> Rhftc<'a> {
 
     /// Fraction of control steps that used the PD fallback.
     pub fn fallback_fraction(&self) -> f64 {
-        self.law.fallback_steps as f64 / self.law.steps.max(1) as f64
+        self.law.fraction(self.law.fallback_steps)
     }
 
     /// Fraction of control steps where `M̂(q)` had to be diagonally loaded.
     pub fn loaded_fraction(&self) -> f64 {
-        self.law.loaded_steps as f64 / self.law.steps.max(1) as f64
+        self.law.fraction(self.law.loaded_steps)
     }
 }
 
@@ -264,12 +269,12 @@ impl<'a> Ctc<'a> {
 
     /// Fraction of control steps that used the PD fallback.
     pub fn fallback_fraction(&self) -> f64 {
-        self.law.fallback_steps as f64 / self.law.steps.max(1) as f64
+        self.law.fraction(self.law.fallback_steps)
     }
 
     /// Fraction of control steps where `M̂(q)` had to be diagonally loaded.
     pub fn loaded_fraction(&self) -> f64 {
-        self.law.loaded_steps as f64 / self.law.steps.max(1) as f64
+        self.law.fraction(self.law.loaded_steps)
     }
 }
 

@@ -40,32 +40,27 @@ pub fn write(dir: &Path, o: &Outcome, command: &str) -> Result<Vec<PathBuf>, Rep
     // Render everything first: nothing is written if any part fails.
     let mut files: Vec<(String, Vec<u8>)> = Vec::new();
     let mut plots = Vec::new();
-    for j in 0..o.dof {
-        let name = format!("residual_vs_velocity_joint{}.svg", j + 1);
-        files.push((
-            name.clone(),
-            residual_plot(o, j)
-                .map_err(|msg| ReportError::Plot {
-                    name: name.clone(),
-                    msg,
-                })?
-                .into_bytes(),
-        ));
+    let mut plot = |name: String, svg: Result<String, String>| -> Result<(), ReportError> {
+        let svg = svg.map_err(|msg| ReportError::Plot {
+            name: name.clone(),
+            msg,
+        })?;
+        files.push((name.clone(), svg.into_bytes()));
         plots.push(name);
+        Ok(())
+    };
+    for j in 0..o.dof {
+        plot(
+            format!("residual_vs_velocity_joint{}.svg", j + 1),
+            residual_plot(o, j),
+        )?;
     }
     if o.validate.is_some() {
         for j in 0..o.dof {
-            let name = format!("validation_joint{}.svg", j + 1);
-            files.push((
-                name.clone(),
-                validation_plot(o, j)
-                    .map_err(|msg| ReportError::Plot {
-                        name: name.clone(),
-                        msg,
-                    })?
-                    .into_bytes(),
-            ));
-            plots.push(name);
+            plot(
+                format!("validation_joint{}.svg", j + 1),
+                validation_plot(o, j),
+            )?;
         }
     }
     let json = serde_json::to_string_pretty(&json_report(o, command))

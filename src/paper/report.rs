@@ -4,6 +4,7 @@
 
 use std::fmt::Write;
 
+use super::ident::max_abs_diff;
 use super::noise::Estimator;
 use super::{PaperResults, PAPER_ITER3, PAPER_TABLE3, PAPER_TABLE6, PAPER_TRACKING};
 
@@ -174,11 +175,7 @@ fn write_report(s: &mut String, r: &PaperResults, figures: &[String]) -> std::fm
         "| true | {} |  0 |",
         th.iter().map(|x| f(*x)).collect::<Vec<_>>().join(" | ")
     )?;
-    let perr = PAPER_ITER3
-        .iter()
-        .zip(th)
-        .map(|(a, b)| (a - b).abs())
-        .fold(0.0, f64::max);
+    let perr = max_abs_diff(&PAPER_ITER3, th);
     writeln!(
         s,
         "| paper | {} | {} |",
@@ -255,11 +252,7 @@ fn write_report(s: &mut String, r: &PaperResults, figures: &[String]) -> std::fm
     writeln!(s, "\n## Table 6 — Fourier-series excitation\n")?;
     writeln!(s, "| | θ1 | θ2 | θ3 | θ4 | θ5 | θ6 | max abs error |")?;
     writeln!(s, "|---|---|---|---|---|---|---|---|")?;
-    let pf = PAPER_TABLE6
-        .iter()
-        .zip(th)
-        .map(|(a, b)| (a - b).abs())
-        .fold(0.0, f64::max);
+    let pf = max_abs_diff(&PAPER_TABLE6, th);
     writeln!(
         s,
         "| paper | {} | {} |",
