@@ -14,25 +14,54 @@ use nalgebra::{DMatrix, DVector};
 const BLOCK: usize = 128;
 
 /// Incremental QR factor of `[W | τ]` (the target is the last of `cols` columns).
+///
+/// Only the columns in the accumulator's *active* set are stored (rows of one joint touch only
+/// the base parameters that act on it and that joint's effect columns): the factor is `k × k`
+/// for `k` active columns, and [`Accumulator::r`] presents it as `k × cols` with zero columns
+/// elsewhere, so fits over any column subset read it like a full factor.
 #[derive(Debug, Clone)]
 pub struct Accumulator {
     cols: usize,
-    r: DMatrix<f64>,
+    /// Active columns (sorted, the target `cols − 1` last).
+    map: Vec<usize>,
+    /// Upper-triangular `k × k` factor over the active columns, column-major.
+    local: Vec<f64>,
+    /// Pending rows over the active columns, column-major with stride [`BLOCK`].
     buf: Vec<f64>,
     pending: usize,
     rows: usize,
+    /// `local` spread to all `cols` columns (valid when nothing is pending).
+    r: DMatrix<f64>,
 }
 
 impl Accumulator {
     /// An empty accumulator for rows of `cols` values (regressors then the target).
     pub fn new(cols: usize) -> Self {
+        Self::with_active(cols, (0..cols).collect())
+    }
+
+    /// An empty accumulator for rows of `cols` values of which only `active` can be non-zero
+    /// (values pushed in other columns are ignored). The target column is always active.
+    pub fn with_active(cols: usize, mut active: Vec<usize>) -> Self {
+        active.retain(|&c| c + 1 < cols);
+        active.sort_unstable();
+        active.dedup();
+        active.push(cols - 1);
+        let k = active.len();
         Accumulator {
             cols,
-            r: DMatrix::zeros(cols, cols),
-            buf: Vec::with_capacity(BLOCK * cols),
+            map: active,
+            local: vec![0.0; k * k],
+            buf: vec![0.0; k * BLOCK],
             pending: 0,
             rows: 0,
+            r: DMatrix::zeros(k, cols),
         }
+    }
+
+    /// An empty accumulator with the same columns.
+    pub fn empty_like(&self) -> Self {
+        Self::with_active(self.cols, self.map.clone())
     }
 
     pub fn cols(&self) -> usize {
@@ -47,44 +76,52 @@ impl Accumulator {
     /// Adds one row `[w₁ … w_p, τ]`.
     pub fn push(&mut self, row: &[f64]) {
         debug_assert_eq!(row.len(), self.cols);
-        self.buf.extend_from_slice(row);
+        let i = self.pending;
+        for (l, &c) in self.map.iter().enumerate() {
+            self.buf[l * BLOCK + i] = row[c];
+        }
         self.pending += 1;
         self.rows += 1;
         if self.pending == BLOCK {
-            self.flush();
+            self.fold_pending();
         }
     }
 
-    fn flush(&mut self) {
+    fn fold_pending(&mut self) {
         if self.pending == 0 {
             return;
         }
-        let c = self.cols;
-        let block = DMatrix::from_row_slice(self.pending, c, &self.buf);
-        let mut stacked = DMatrix::zeros(c + self.pending, c);
-        stacked.view_mut((0, 0), (c, c)).copy_from(&self.r);
-        stacked
-            .view_mut((c, 0), (self.pending, c))
-            .copy_from(&block);
-        self.r = triangular(stacked);
-        self.buf.clear();
+        let k = self.map.len();
+        householder_update(&mut self.local, k, &mut self.buf, BLOCK, self.pending);
         self.pending = 0;
+    }
+
+    fn flush(&mut self) {
+        self.fold_pending();
+        let k = self.map.len();
+        for (l, &c) in self.map.iter().enumerate() {
+            for i in 0..k {
+                self.r[(i, c)] = self.local[l * k + i];
+            }
+        }
     }
 
     /// Adds all rows of `other` (same columns).
     pub fn merge(&mut self, other: &Accumulator) {
+        assert_eq!(
+            self.map, other.map,
+            "merging accumulators of different columns"
+        );
         let mut o = other.clone();
-        o.flush();
-        self.flush();
-        let c = self.cols;
-        let mut stacked = DMatrix::zeros(2 * c, c);
-        stacked.view_mut((0, 0), (c, c)).copy_from(&self.r);
-        stacked.view_mut((c, 0), (c, c)).copy_from(&o.r);
-        self.r = triangular(stacked);
+        o.fold_pending();
+        self.fold_pending();
+        let k = self.map.len();
+        householder_update(&mut self.local, k, &mut o.local, k, k);
         self.rows += other.rows;
+        self.flush();
     }
 
-    /// The triangular factor (`(p+1) × (p+1)`), pending rows folded in.
+    /// The triangular factor (`k × cols`), pending rows folded in.
     pub fn factor(&mut self) -> &DMatrix<f64> {
         self.flush();
         &self.r
@@ -104,7 +141,7 @@ impl Accumulator {
     /// Sum of squares of the target column, `Σ τ²`.
     pub fn target_ss(&self) -> f64 {
         let t = self.cols - 1;
-        (0..self.cols).map(|i| self.r[(i, t)].powi(2)).sum()
+        (0..self.r.nrows()).map(|i| self.r[(i, t)].powi(2)).sum()
     }
 
     /// Sum of squared residuals `Σ (τ − w·x)²` of these rows for a parameter vector `x` over the
@@ -112,7 +149,7 @@ impl Accumulator {
     pub fn sse(&self, subset: &[usize], x: &[f64]) -> f64 {
         let t = self.cols - 1;
         let mut s = 0.0;
-        for i in 0..self.cols {
+        for i in 0..self.r.nrows() {
             let mut v = self.r[(i, t)];
             for (k, &c) in subset.iter().enumerate() {
                 v -= self.r[(i, c)] * x[k];
@@ -121,6 +158,57 @@ impl Accumulator {
         }
         s
     }
+}
+
+/// Folds the first `m` rows of the column-major block `b` (`k` columns, column stride `ld`)
+/// into the upper-triangular `k × k` column-major factor `r`: afterwards `rᵀr` has grown by
+/// `bᵀb`. Householder reflections that exploit the triangle (each touches one row of `r` and
+/// the block), so a row costs `≈ 2k²` flops; `b` is overwritten.
+fn householder_update(r: &mut [f64], k: usize, b: &mut [f64], ld: usize, m: usize) {
+    for c in 0..k {
+        let (left, right) = b.split_at_mut((c + 1) * ld);
+        let v = &mut left[c * ld..c * ld + m];
+        let x0 = r[c * k + c];
+        let sb = dot(v, v);
+        if sb == 0.0 {
+            continue;
+        }
+        let norm = (x0 * x0 + sb).sqrt();
+        let alpha = if x0 > 0.0 { -norm } else { norm };
+        // H = I − τ·u·uᵀ with u = [1; v / (x0 − α)], τ = (α − x0)/α.
+        let v0 = x0 - alpha;
+        let inv = 1.0 / v0;
+        for e in v.iter_mut() {
+            *e *= inv;
+        }
+        let tau = (alpha - x0) / alpha;
+        r[c * k + c] = alpha;
+        for l in c + 1..k {
+            let col = &mut right[(l - c - 1) * ld..(l - c - 1) * ld + m];
+            let s = tau * (r[l * k + c] + dot(v, col));
+            r[l * k + c] -= s;
+            for (y, &x) in col.iter_mut().zip(v.iter()) {
+                *y -= s * x;
+            }
+        }
+    }
+}
+
+/// Dot product with four partial sums (vectorises without reassociation licence).
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let mut acc = [0.0; 4];
+    let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
+    let (ra, rb) = (ca.remainder(), cb.remainder());
+    for (x, y) in ca.zip(cb) {
+        for i in 0..4 {
+            acc[i] += x[i] * y[i];
+        }
+    }
+    let mut s = (acc[0] + acc[2]) + (acc[1] + acc[3]);
+    for (x, y) in ra.iter().zip(rb) {
+        s += x * y;
+    }
+    s
 }
 
 /// `R` of the QR of `m` (rows ≥ cols), as a square `cols × cols` upper-triangular matrix.
@@ -227,6 +315,78 @@ pub fn solve(factors: &[(&DMatrix<f64>, f64)], subset: &[usize]) -> Result<Fit, 
         cond,
         inv_normal: inv,
     })
+}
+
+/// The parameters and weighted residual sum of squares of [`solve`], without the condition
+/// number and covariance (for the many refits of held-out tests). The rank test is the same:
+/// with unit-norm columns the QR diagonal `|R_kk|` is the norm of column `k` orthogonal to the
+/// previous ones, the quantity [`dependent_columns`] tests; when one falls below
+/// [`RANK_TOL`], [`dependent_columns`] names the culprits.
+pub fn solve_x(
+    factors: &[(&DMatrix<f64>, f64)],
+    subset: &[usize],
+) -> Result<(Vec<f64>, f64), RankDeficient> {
+    let s = subset.len();
+    let rows: usize = factors
+        .iter()
+        .map(|(r, _)| r.nrows())
+        .sum::<usize>()
+        .max(s + 1);
+    let c = s + 1;
+    // Column-major stack.
+    let mut m = vec![0.0; rows * c];
+    let mut off = 0;
+    for (r, w) in factors {
+        let t = r.ncols() - 1;
+        for i in 0..r.nrows() {
+            for (k, &col) in subset.iter().enumerate() {
+                m[k * rows + off + i] = w * r[(i, col)];
+            }
+            m[s * rows + off + i] = w * r[(i, t)];
+        }
+        off += r.nrows();
+    }
+    let norms: Vec<f64> = (0..s)
+        .map(|k| dot(&m[k * rows..(k + 1) * rows], &m[k * rows..(k + 1) * rows]).sqrt())
+        .collect();
+    let maxn = norms.iter().copied().fold(0.0, f64::max);
+    let degenerate = norms
+        .iter()
+        .any(|&n| n.is_nan() || n <= 1e-12 * maxn.max(1e-300));
+    let fallback = || RankDeficient {
+        dependent: dependent_columns(&stack(factors, subset).columns(0, s).into_owned(), &norms)
+            .iter()
+            .map(|&k| subset[k])
+            .collect(),
+    };
+    if degenerate {
+        return Err(fallback());
+    }
+    for k in 0..s {
+        let inv = 1.0 / norms[k];
+        for v in &mut m[k * rows..(k + 1) * rows] {
+            *v *= inv;
+        }
+    }
+    let mut r = vec![0.0; c * c];
+    householder_update(&mut r, c, &mut m, rows, rows);
+    if (0..s).any(|k| r[k * c + k].abs() < RANK_TOL) {
+        let e = fallback();
+        if !e.dependent.is_empty() {
+            return Err(e);
+        }
+    }
+    // Back substitution R_s y = rhs.
+    let mut y = vec![0.0; s];
+    for i in (0..s).rev() {
+        let mut v = r[s * c + i];
+        for k in i + 1..s {
+            v -= r[k * c + i] * y[k];
+        }
+        y[i] = v / r[i * c + i];
+    }
+    let x = (0..s).map(|k| y[k] / norms[k]).collect();
+    Ok((x, r[s * c + s].powi(2)))
 }
 
 /// Stacks `w_g · R_g[:, subset ∪ τ]` (τ last).
@@ -416,6 +576,56 @@ mod tests {
         m.merge(&b);
         assert_eq!(m.rows(), 300);
         assert!((m.target_ss() - a.target_ss() - b.target_ss()).abs() < 1e-10);
+    }
+
+    #[test]
+    fn lean_solve_equals_full_solve() {
+        let mut s = 11u64;
+        let mut a = Accumulator::with_active(6, vec![0, 1, 3]);
+        let mut b = Accumulator::new(6);
+        for _ in 0..400 {
+            let r: Vec<f64> = (0..6).map(|_| lcg(&mut s)).collect();
+            a.push(&r);
+            b.push(&r);
+        }
+        a.finish();
+        b.finish();
+        for subset in [vec![0, 1, 3], vec![1, 2, 4], vec![0, 1, 2, 3, 4]] {
+            let f = [(a.r(), 1.5), (b.r(), 0.5)];
+            let full = solve(&f, &subset).unwrap();
+            let (x, wsse) = solve_x(&f, &subset).unwrap();
+            for (u, v) in x.iter().zip(&full.x) {
+                assert!((u - v).abs() < 1e-12, "{subset:?}: {u} vs {v}");
+            }
+            assert!((wsse - full.wsse).abs() < 1e-10 * full.wsse);
+        }
+        // Inactive columns of `a` are zero: alone they are dependent.
+        assert_eq!(
+            solve_x(&[(a.r(), 1.0)], &[0, 2]).unwrap_err().dependent,
+            vec![2]
+        );
+    }
+
+    #[test]
+    fn compact_accumulator_equals_full_one() {
+        let mut s = 5u64;
+        let mut a = Accumulator::with_active(5, vec![0, 2]);
+        let mut b = Accumulator::new(5);
+        for _ in 0..333 {
+            let r = [lcg(&mut s), 0.0, lcg(&mut s), 0.0, lcg(&mut s)];
+            a.push(&r);
+            b.push(&r);
+        }
+        a.finish();
+        b.finish();
+        let x = [0.7, -1.3];
+        assert!((a.sse(&[0, 2], &x) - b.sse(&[0, 2], &x)).abs() < 1e-10);
+        assert!((a.target_ss() - b.target_ss()).abs() < 1e-10);
+        let (fa, fb) = (
+            solve(&[(a.r(), 1.0)], &[0, 2]).unwrap(),
+            solve(&[(b.r(), 1.0)], &[0, 2]).unwrap(),
+        );
+        assert!((fa.x[0] - fb.x[0]).abs() < 1e-12 && (fa.x[1] - fb.x[1]).abs() < 1e-12);
     }
 
     #[test]

@@ -29,6 +29,7 @@ pub mod synth;
 use std::sync::Arc;
 
 use nalgebra::{DMatrix, DVector};
+use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::arms::ArmSource;
@@ -203,6 +204,19 @@ impl Prepared {
         })
     }
 
+    /// Every how many grid samples a filtered regression row is kept.
+    fn decimation(&self) -> usize {
+        let r = self.est.report.fs_hz / (KEEP_RATE_PER_CUTOFF * self.est.report.cutoff_hz);
+        (r.floor() as usize).max(1)
+    }
+
+    /// Grid samples `[start, end)` of block `b` of `nblocks` (consistent with `block_of`).
+    fn block_range(&self, b: usize, nblocks: usize) -> (usize, usize) {
+        let span = (self.keep.1 - self.keep.0).max(1);
+        let at = |b: usize| self.keep.0 + (b * span).div_ceil(nblocks);
+        (at(b), at(b + 1).min(self.keep.1))
+    }
+
     /// Block of grid sample `k` when the kept range is split into `nblocks`.
     fn block_of(&self, k: usize, nblocks: usize) -> usize {
         let span = (self.keep.1 - self.keep.0).max(1);
@@ -281,6 +295,9 @@ pub struct Layout {
     pub base_exprs: Vec<String>,
     pub terms: Vec<Term>,
     pub scales: Vec<Scales>,
+    /// Per joint, the base columns that can be non-zero in its rows (structurally zero ones
+    /// are left out of its accumulators).
+    pub base_active: Vec<Vec<usize>>,
 }
 
 impl Layout {
@@ -292,6 +309,24 @@ impl Layout {
     /// Column index of a term.
     pub fn col(&self, t: &Term) -> Option<usize> {
         self.terms.iter().position(|x| x == t).map(|i| self.nb + i)
+    }
+
+    /// Columns that can be non-zero in joint `j`'s rows: its base columns and its own terms.
+    pub fn active(&self, j: usize) -> Vec<usize> {
+        let mut a = self.base_active[j].clone();
+        a.extend(
+            (0..self.terms.len())
+                .filter(|&i| self.terms[i].joint == j)
+                .map(|i| self.nb + i),
+        );
+        a
+    }
+
+    /// Empty `[joint]` accumulators for rows of this layout (with the target column).
+    fn accumulators(&self) -> Vec<Accumulator> {
+        (0..self.dof)
+            .map(|j| Accumulator::with_active(self.ncols() + 1, self.active(j)))
+            .collect()
     }
 
     /// Name of a column.
@@ -336,71 +371,125 @@ impl<'a> Rows<'a> {
     }
 }
 
-/// Parallel-filtered regression of one file into `[block][joint]` accumulators.
+/// Rows of the filtered regression are kept at this many times the cut-off (Gautier's
+/// decimation after parallel filtering): the filtered columns carry nothing above a few
+/// cut-offs (a 4th-order zero-phase Butterworth is down 2.6e-6 at 5·fc), so sums over the
+/// decimated rows equal those over all rows to that order, at a fraction of the cost.
+pub const KEEP_RATE_PER_CUTOFF: f64 = 20.0;
+
+/// Parallel-filtered regression of one file into `[block][joint]` accumulators, using the
+/// first `frac` of each block's samples (1 = all), decimated to [`KEEP_RATE_PER_CUTOFF`]·fc.
 fn accumulate_fit(
     p: &Prepared,
     base: &BaseModel,
     layout: &Layout,
     nblocks: usize,
+    frac: f64,
 ) -> Vec<Vec<Accumulator>> {
     let (n, nc) = (layout.dof, layout.ncols());
     let g = p.est.grid;
     let filt = p.est.filter.as_zero_phase();
     let reach = filt.reach();
-    let core = (4 * reach).max(8192);
-    let mut accs: Vec<Vec<Accumulator>> = (0..nblocks)
-        .map(|_| (0..n).map(|_| Accumulator::new(nc + 1)).collect())
+    let core = (2 * reach).max(8192);
+    let decim = p.decimation();
+    // `[joint][block]` while accumulating, so joints run in parallel.
+    let mut accs: Vec<Vec<Accumulator>> = layout
+        .accumulators()
+        .into_iter()
+        .map(|a| vec![a; nblocks])
         .collect();
-    let (k0, k1) = p.keep;
+    let active: Vec<Vec<usize>> = (0..n).map(|j| layout.active(j)).collect();
     let tau = grid_tau(p);
+    // Used samples: a leading share of each block; neighbouring shares closer than the
+    // filter's margins are filtered in one piece.
+    let segs: Vec<(usize, usize)> = (0..nblocks)
+        .map(|blk| {
+            let (s0, s1) = p.block_range(blk, nblocks);
+            let used = ((s1 - s0) as f64 * frac).ceil() as usize;
+            (s0, s0 + used.clamp(1, (s1 - s0).max(1)))
+        })
+        .filter(|(s0, s1)| s1 > s0)
+        .collect();
+    let mut groups: Vec<(usize, usize)> = Vec::new();
+    for &(s0, s1) in &segs {
+        match groups.last_mut() {
+            Some(last) if s0 <= last.1 + 2 * reach => last.1 = s1,
+            _ => groups.push((s0, s1)),
+        }
+    }
+    let used = |k: usize| -> bool {
+        (k - p.keep.0) % decim == 0 && {
+            let blk = p.block_of(k, nblocks);
+            k < segs.get(blk).map_or(0, |s| s.1)
+        }
+    };
     let mut rows = Rows::new(base, layout);
     let mut buf = vec![0.0; n * nc];
     let (mut q, mut dq, mut ddq) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-    let mut a = k0;
-    while a < k1 {
-        let b = (a + core).min(k1);
-        let lo = a.saturating_sub(reach);
-        let hi = (b + reach).min(g.n);
-        let w = hi - lo;
-        // Column-major window: cols[(j * (nc + 1) + c) * w + (k - lo)].
-        let mut cols = vec![0.0; n * (nc + 1) * w];
-        for k in lo..hi {
-            for j in 0..n {
-                q[j] = p.est.q[j][k];
-                dq[j] = p.est.dq[j][k];
-                ddq[j] = p.est.ddq[j][k];
-            }
-            rows.fill(&q, &dq, &ddq, &mut buf);
-            for j in 0..n {
-                for c in 0..nc {
-                    cols[(j * (nc + 1) + c) * w + (k - lo)] = buf[j * nc + c];
+    for &(g0, g1) in &groups {
+        let mut a = g0;
+        while a < g1 {
+            let b = (a + core).min(g1);
+            let lo = a.saturating_sub(reach);
+            let hi = (b + reach).min(g.n);
+            let w = hi - lo;
+            // Per joint, its active columns then τ, column-major: cols[j][l * w + (k - lo)].
+            let mut cols: Vec<Vec<f64>> = active
+                .iter()
+                .map(|a| vec![0.0; (a.len() + 1) * w])
+                .collect();
+            for k in lo..hi {
+                for j in 0..n {
+                    q[j] = p.est.q[j][k];
+                    dq[j] = p.est.dq[j][k];
+                    ddq[j] = p.est.ddq[j][k];
                 }
-                cols[(j * (nc + 1) + nc) * w + (k - lo)] = tau[j][k];
-            }
-        }
-        for ch in cols.chunks_mut(w) {
-            if ch.iter().any(|v| *v != 0.0) {
-                filt.apply(ch, lo == 0, hi == g.n);
-            }
-        }
-        let mut row = vec![0.0; nc + 1];
-        for k in a..b {
-            let blk = p.block_of(k, nblocks);
-            for j in 0..n {
-                for c in 0..=nc {
-                    row[c] = cols[(j * (nc + 1) + c) * w + (k - lo)];
+                rows.fill(&q, &dq, &ddq, &mut buf);
+                for j in 0..n {
+                    for (l, &c) in active[j].iter().enumerate() {
+                        cols[j][l * w + (k - lo)] = buf[j * nc + c];
+                    }
+                    cols[j][active[j].len() * w + (k - lo)] = tau[j][k];
                 }
-                accs[blk][j].push(&row);
             }
+            let keep: Vec<(usize, usize)> = (a..b)
+                .filter(|&k| used(k))
+                .map(|k| (k, p.block_of(k, nblocks)))
+                .collect();
+            cols.par_iter_mut()
+                .zip(accs.par_iter_mut())
+                .zip(active.par_iter())
+                .for_each(|((cj, acc), act)| {
+                    let mut chans: Vec<&mut [f64]> = cj
+                        .chunks_mut(w)
+                        .filter(|ch| ch.iter().any(|v| *v != 0.0))
+                        .collect();
+                    filt.apply_many(&mut chans, lo == 0, hi == g.n);
+                    let mut row = vec![0.0; nc + 1];
+                    for &(k, blk) in &keep {
+                        for (l, &c) in act.iter().enumerate() {
+                            row[c] = cj[l * w + (k - lo)];
+                        }
+                        row[nc] = cj[act.len() * w + (k - lo)];
+                        acc[blk].push(&row);
+                    }
+                });
+            a = b;
         }
-        a = b;
     }
-    for blk in &mut accs {
-        for acc in blk {
-            acc.finish();
+    finish_transposed(accs, nblocks)
+}
+
+/// `[joint][block]` → finished `[block][joint]`.
+fn finish_transposed(accs: Vec<Vec<Accumulator>>, nblocks: usize) -> Vec<Vec<Accumulator>> {
+    let mut out: Vec<Vec<Accumulator>> = (0..nblocks).map(|_| Vec::new()).collect();
+    for joint in accs {
+        for (b, mut a) in joint.into_iter().enumerate() {
+            a.finish();
+            out[b].push(a);
         }
     }
-    accs
+    out
 }
 
 /// Measured torque on the file's uniform grid (resampled linearly if the sampling is uneven).
@@ -441,42 +530,69 @@ fn for_raw_samples(
     }
 }
 
-/// Unfiltered regression against the measured torque, `[block][joint]` (for errors).
+/// Unfiltered regression against the measured torque, `[block][joint]` (for errors), over the
+/// raw samples in the first `frac` of each block (1 = all).
 fn accumulate_raw(
     p: &Prepared,
     base: &BaseModel,
     layout: &Layout,
     nblocks: usize,
+    frac: f64,
 ) -> Vec<Vec<Accumulator>> {
     let (n, nc) = (layout.dof, layout.ncols());
-    let mut accs: Vec<Vec<Accumulator>> = (0..nblocks)
-        .map(|_| (0..n).map(|_| Accumulator::new(nc + 1)).collect())
+    let mut accs: Vec<Vec<Accumulator>> = layout
+        .accumulators()
+        .into_iter()
+        .map(|a| vec![a; nblocks])
+        .collect();
+    let ranges: Vec<(usize, usize)> = (0..nblocks)
+        .map(|b| {
+            let (s0, s1) = p.block_range(b, nblocks);
+            let used = ((s1 - s0) as f64 * frac).ceil() as usize;
+            (s0, s0 + used.max(1))
+        })
         .collect();
     let mut rows = Rows::new(base, layout);
-    let mut buf = vec![0.0; n * nc];
-    let mut row = vec![0.0; nc + 1];
     let g = p.est.grid;
+    // Rows in batches (`[sample][joint][column | τ]`), pushed per joint in parallel.
+    const BATCH: usize = 4096;
+    let stride = n * (nc + 1);
+    let mut batch: Vec<f64> = Vec::with_capacity(BATCH * stride);
+    let mut batch_blk: Vec<usize> = Vec::with_capacity(BATCH);
+    let mut y = vec![0.0; n * nc];
+    let flush = |batch: &mut Vec<f64>, blks: &mut Vec<usize>, accs: &mut Vec<Vec<Accumulator>>| {
+        accs.par_iter_mut().enumerate().for_each(|(j, acc)| {
+            for (i, &blk) in blks.iter().enumerate() {
+                let at = i * stride + j * (nc + 1);
+                acc[blk].push(&batch[at..at + nc + 1]);
+            }
+        });
+        batch.clear();
+        blks.clear();
+    };
     for_raw_samples(p, 1, |k, q, dq, ddq, tau| {
-        rows.fill(q, dq, ddq, &mut buf);
         let kg = (((p.traj.t[k] - g.t0) / g.dt).round().max(0.0) as usize).min(g.n - 1);
         let blk = p.block_of(kg, nblocks);
+        if kg >= ranges[blk].1 {
+            return;
+        }
+        rows.fill(q, dq, ddq, &mut y);
         for j in 0..n {
-            row[..nc].copy_from_slice(&buf[j * nc..(j + 1) * nc]);
-            row[nc] = tau[j];
-            accs[blk][j].push(&row);
+            batch.extend_from_slice(&y[j * nc..(j + 1) * nc]);
+            batch.push(tau[j]);
+        }
+        batch_blk.push(blk);
+        if batch_blk.len() == BATCH {
+            flush(&mut batch, &mut batch_blk, &mut accs);
         }
     });
-    for b in &mut accs {
-        for a in b {
-            a.finish();
-        }
-    }
-    accs
+    flush(&mut batch, &mut batch_blk, &mut accs);
+    finish_transposed(accs, nblocks)
 }
 
-/// Merges `[block][joint]` accumulators into `[joint]`.
-fn merge_blocks(blocks: &[Vec<Accumulator>], n: usize, cols: usize) -> Vec<Accumulator> {
-    let mut out: Vec<Accumulator> = (0..n).map(|_| Accumulator::new(cols)).collect();
+/// Merges `[block][joint]` accumulators into `[joint]` (at least one block).
+fn merge_blocks(blocks: &[Vec<Accumulator>], n: usize) -> Vec<Accumulator> {
+    let mut out: Vec<Accumulator> = blocks[0].iter().map(Accumulator::empty_like).collect();
     for b in blocks {
         for j in 0..n {
             out[j].merge(&b[j]);
@@ -509,19 +625,18 @@ impl Problem {
     ) -> Self {
         let n = layout.dof;
         let nbk = blocks.len();
-        let nc = layout.ncols() + 1;
-        let total = merge_blocks(&blocks, n, nc);
+        let total = merge_blocks(&blocks, n);
         // Leave-one-block-out factors from prefix and suffix merges: O(blocks) QR updates.
         let mut loo = vec![Vec::with_capacity(n); nbk];
         #[allow(clippy::needless_range_loop)]
         for j in 0..n {
-            let mut prefix = vec![Accumulator::new(nc)];
+            let mut prefix = vec![blocks[0][j].empty_like()];
             for b in 0..nbk {
                 let mut a = prefix[b].clone();
                 a.merge(&blocks[b][j]);
                 prefix.push(a);
             }
-            let mut suffix = vec![Accumulator::new(nc); nbk + 1];
+            let mut suffix = vec![blocks[0][j].empty_like(); nbk + 1];
             for b in (0..nbk).rev() {
                 let mut a = suffix[b + 1].clone();
                 a.merge(&blocks[b][j]);
@@ -550,14 +665,27 @@ impl Problem {
         train: &[Prepared],
         target_blocks: usize,
     ) -> Self {
+        Self::build_sampled(base, layout, train, target_blocks, usize::MAX)
+    }
+
+    /// As [`Problem::build`] from at most about `max_samples` samples: the same leading share
+    /// of every block (so every block, and the held-out test, still covers the whole log).
+    pub fn build_sampled(
+        base: &BaseModel,
+        layout: Layout,
+        train: &[Prepared],
+        target_blocks: usize,
+        max_samples: usize,
+    ) -> Self {
         let total_rows: usize = train.iter().map(|p| p.keep.1 - p.keep.0).sum();
+        let frac = (max_samples as f64 / total_rows.max(1) as f64).min(1.0);
         let (mut blocks, mut raw) = (Vec::new(), Vec::new());
         for p in train {
             let share = (target_blocks as f64 * (p.keep.1 - p.keep.0) as f64
                 / total_rows.max(1) as f64)
                 .round() as usize;
-            blocks.extend(accumulate_fit(p, base, &layout, share.max(2)));
-            raw.extend(accumulate_raw(p, base, &layout, share.max(2)));
+            blocks.extend(accumulate_fit(p, base, &layout, share.max(2), frac));
+            raw.extend(accumulate_raw(p, base, &layout, share.max(2), frac));
         }
         let files = train
             .iter()
@@ -574,9 +702,9 @@ impl Problem {
         for b in 0..self.blocks() {
             let f: Vec<(&DMatrix<f64>, f64)> =
                 self.loo[b].iter().zip(w).map(|(r, &w)| (r, w)).collect();
-            let fit = ls::solve(&f, subset).map_err(|e| self.rank_error(&e.dependent))?;
+            let (x, _) = ls::solve_x(&f, subset).map_err(|e| self.rank_error(&e.dependent))?;
             for a in &self.raw[b] {
-                sse += a.sse(subset, &fit.x);
+                sse += a.sse(subset, &x);
                 tss += a.target_ss();
             }
         }
@@ -619,13 +747,19 @@ impl Problem {
         let n = self.layout.dof;
         let mut w = vec![1.0; n];
         for _ in 0..2 {
-            let fit = self.fit(subset, &w)?;
+            let f: Vec<(&DMatrix<f64>, f64)> = self
+                .total
+                .iter()
+                .zip(&w)
+                .map(|(a, &w)| (a.r(), w))
+                .collect();
+            let (x, _) = ls::solve_x(&f, subset).map_err(|e| self.rank_error(&e.dependent))?;
             w = (0..n)
                 .map(|j| {
                     let a = &self.total[j];
                     let rows = a.rows().max(1) as f64;
                     let scale = (a.target_ss() / rows).sqrt();
-                    let s = (a.sse(subset, &fit.x) / rows)
+                    let s = (a.sse(subset, &x) / rows)
                         .sqrt()
                         .max(1e-9 * scale)
                         .max(1e-300);
@@ -643,10 +777,10 @@ impl Problem {
         for b in 0..self.blocks() {
             let f: Vec<(&DMatrix<f64>, f64)> =
                 self.loo[b].iter().zip(w).map(|(r, &w)| (r, w)).collect();
-            let fit = ls::solve(&f, subset).map_err(|e| self.rank_error(&e.dependent))?;
+            let (x, _) = ls::solve_x(&f, subset).map_err(|e| self.rank_error(&e.dependent))?;
             out.push(
                 (0..n)
-                    .map(|j| w[j] * w[j] * self.blocks[b][j].sse(subset, &fit.x))
+                    .map(|j| w[j] * w[j] * self.blocks[b][j].sse(subset, &x))
                     .collect(),
             );
         }
@@ -659,7 +793,7 @@ impl Problem {
             .filter_map(|b| {
                 let f: Vec<(&DMatrix<f64>, f64)> =
                     self.loo[b].iter().zip(w).map(|(r, &w)| (r, w)).collect();
-                ls::solve(&f, subset).ok().map(|fit| fit.x)
+                ls::solve_x(&f, subset).ok().map(|(x, _)| x)
             })
             .collect()
     }
@@ -908,6 +1042,10 @@ impl PrepCache {
     }
 }
 
+/// Most grid samples the cut-off scan fits per cut-off (a leading share of every time block of
+/// longer logs; the final fit uses all samples).
+pub const SCAN_SAMPLES: usize = 100_000;
+
 /// One point of the cut-off scan.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct CutoffTrial {
@@ -963,7 +1101,8 @@ pub fn choose_cutoff(
             .iter()
             .map(|t| cache.get(t, cfg, Some(fc), Some(edge_fc)))
             .collect::<Result<_, _>>()?;
-        let problem = Problem::build(base, layout.clone(), &preps, cfg.blocks);
+        let problem =
+            Problem::build_sampled(base, layout.clone(), &preps, cfg.blocks, SCAN_SAMPLES);
         let subset = problem.subset(&all);
         let Ok(w) = problem.weights(&subset) else {
             continue;
@@ -1041,6 +1180,10 @@ fn make_layout(
     let mut terms: Vec<Term> = declared.iter().chain(&searched).copied().collect();
     terms.sort();
     terms.dedup();
+    let base_active = match table {
+        Some(tab) => structural_base_columns(base, tab),
+        None => vec![(0..base.nb()).collect(); n],
+    };
     let layout = Layout {
         dof: n,
         nb: base.nb(),
@@ -1048,8 +1191,35 @@ fn make_layout(
         base_exprs: base.exprs(),
         terms,
         scales,
+        base_active,
     };
     (layout, declared, searched, merged)
+}
+
+/// Per joint, the base columns that are non-zero at some of 40 random states (a structurally
+/// zero entry is exactly zero in the generated kernels and at rounding level, ≤ 1e-10 of the
+/// column's largest entry, in the numeric base map).
+fn structural_base_columns(base: &BaseModel, table: &crate::dh::DhTable) -> Vec<Vec<usize>> {
+    let (n, nb) = (base.dof(), base.nb());
+    let mut peak = vec![0.0f64; n * nb];
+    let mut s = base.scratch();
+    let mut yb = vec![0.0; n * nb];
+    for [q, dq, ddq] in base::random_states(table, 40, 23) {
+        base.eval(&mut s, &q, &dq, &ddq, &mut yb);
+        for (p, y) in peak.iter_mut().zip(&yb) {
+            *p = p.max(y.abs());
+        }
+    }
+    (0..n)
+        .map(|j| {
+            (0..nb)
+                .filter(|&c| {
+                    let col_max = (0..n).map(|i| peak[i * nb + c]).fold(0.0, f64::max);
+                    peak[j * nb + c] > 1e-10 * col_max
+                })
+                .collect()
+        })
+        .collect()
 }
 
 /// [`run`] on files already prepared (so studies can rotate files without redoing derivatives).
@@ -1066,9 +1236,9 @@ pub fn run_prepared(
     let names = layout.base_names.clone();
     let scales = layout.scales.clone();
     let problem = Problem::build(base, layout.clone(), train, cfg.blocks);
-    let raw_train: Vec<Accumulator> = merge_blocks(&problem.raw, n, layout.ncols() + 1);
+    let raw_train: Vec<Accumulator> = merge_blocks(&problem.raw, n);
     let raw_val: Option<Vec<Accumulator>> =
-        val.map(|p| merge_blocks(&accumulate_raw(p, base, &layout, 1), n, layout.ncols() + 1));
+        val.map(|p| merge_blocks(&accumulate_raw(p, base, &layout, 1, 1.0), n));
 
     // Declared (rigid) model first: its rank is the excitation check.
     let rigid = problem.subset(&[]);
