@@ -417,6 +417,23 @@ impl Trajectory {
         Ok(())
     }
 
+    /// Samples `lo..hi` as a trajectory of their own, named `source[rows lo+1..hi]`.
+    pub fn slice(&self, lo: usize, hi: usize) -> Trajectory {
+        let hi = hi.min(self.len());
+        let lo = lo.min(hi);
+        let n = self.dof;
+        let cut = |v: &Vec<f64>| v[lo * n..hi * n].to_vec();
+        Trajectory {
+            source: format!("{}[rows {}..{}]", self.source, lo + 1, hi),
+            dof: n,
+            t: self.t[lo..hi].to_vec(),
+            q: cut(&self.q),
+            dq: self.dq.as_ref().map(cut),
+            ddq: self.ddq.as_ref().map(cut),
+            tau: self.tau.as_ref().map(cut),
+        }
+    }
+
     /// Error unless there are at least `needed` samples.
     pub fn require_samples(&self, needed: usize, purpose: &str) -> Result<(), DataError> {
         if self.len() < needed {

@@ -193,9 +193,6 @@ pub trait ZeroPhase: Sync {
     fn describe(&self) -> String;
 }
 
-/// Channels filtered side by side by [`ZeroPhase::apply_many`].
-const LANES: usize = 4;
-
 #[derive(Debug, Clone, Copy)]
 struct Biquad {
     b: [f64; 3],
@@ -218,27 +215,38 @@ impl Biquad {
         }
     }
 
-    /// [`Biquad::run`] on interleaved channels, in the order the iterator gives.
-    fn run_lanes<'a>(&self, mut x: impl Iterator<Item = &'a mut [f64; LANES]>) {
+    /// [`Biquad::run`] of each section in turn, on interleaved channels in the order the
+    /// iterator gives, fused into one sweep (each section starts from the steady state for its
+    /// own first input, as when run one after the other).
+    fn cascade_lanes<'a, const L: usize>(
+        sections: &[Biquad],
+        mut x: impl Iterator<Item = &'a mut [f64; L]>,
+    ) {
         let Some(first) = x.next() else { return };
-        let x0 = *first;
-        let (mut z1, mut z2) = ([0.0; LANES], [0.0; LANES]);
-        for l in 0..LANES {
-            z2[l] = (self.b[2] - self.a[1]) * x0[l];
-            z1[l] = (self.b[1] - self.a[0]) * x0[l] + z2[l];
-        }
-        let mut step = |v: &mut [f64; LANES]| {
-            for l in 0..LANES {
-                let xi = v[l];
-                let y = self.b[0] * xi + z1[l];
-                z1[l] = self.b[1] * xi - self.a[0] * y + z2[l];
-                z2[l] = self.b[2] * xi - self.a[1] * y;
-                v[l] = y;
+        let m = sections.len();
+        let mut z = vec![([0.0; L], [0.0; L]); m];
+        for (s, (z1, z2)) in sections.iter().zip(z.iter_mut()) {
+            for l in 0..L {
+                z2[l] = (s.b[2] - s.a[1]) * first[l];
+                z1[l] = (s.b[1] - s.a[0]) * first[l] + z2[l];
             }
-        };
-        step(first);
+            s.step_lanes(first, z1, z2);
+        }
         for v in x {
-            step(v);
+            for (s, (z1, z2)) in sections.iter().zip(z.iter_mut()) {
+                s.step_lanes(v, z1, z2);
+            }
+        }
+    }
+
+    #[inline(always)]
+    fn step_lanes<const L: usize>(&self, v: &mut [f64; L], z1: &mut [f64; L], z2: &mut [f64; L]) {
+        for l in 0..L {
+            let xi = v[l];
+            let y = self.b[0] * xi + z1[l];
+            z1[l] = self.b[1] * xi - self.a[0] * y + z2[l];
+            z2[l] = self.b[2] * xi - self.a[1] * y;
+            v[l] = y;
         }
     }
 
@@ -319,9 +327,10 @@ impl Butterworth {
         }
     }
 
-    /// [`ZeroPhase::apply`] on [`LANES`] channels at once, interleaved so the recursions run side
-    /// by side (the same operations per channel as `apply`, so the same numbers bit for bit).
-    fn apply_lanes(&self, xs: &mut [&mut [f64]], pad_left: bool, pad_right: bool) {
+    /// [`ZeroPhase::apply`] on `L` channels at once, interleaved so the recursions of all
+    /// channels and sections run side by side in one sweep each way (the same operations per
+    /// channel as `apply`, so the same numbers bit for bit).
+    fn apply_lanes<const L: usize>(&self, xs: &mut [&mut [f64]], pad_left: bool, pad_right: bool) {
         let n = xs[0].len();
         if n < 2 {
             return;
@@ -329,7 +338,7 @@ impl Butterworth {
         let p = self.pad_len().min(n - 1);
         let (pl, pr) = (if pad_left { p } else { 0 }, if pad_right { p } else { 0 });
         let len = n + pl + pr;
-        let mut ext = vec![[0.0f64; LANES]; len];
+        let mut ext = vec![[0.0f64; L]; len];
         for (l, x) in xs.iter().enumerate() {
             for i in 1..=pl {
                 ext[pl - i][l] = 2.0 * x[0] - x[i];
@@ -341,12 +350,8 @@ impl Butterworth {
                 ext[pl + n - 1 + i][l] = 2.0 * x[n - 1] - x[n - 1 - i];
             }
         }
-        for s in &self.sections {
-            s.run_lanes(ext.iter_mut());
-        }
-        for s in &self.sections {
-            s.run_lanes(ext.iter_mut().rev());
-        }
+        Biquad::cascade_lanes(&self.sections, ext.iter_mut());
+        Biquad::cascade_lanes(&self.sections, ext.iter_mut().rev());
         for (l, x) in xs.iter_mut().enumerate() {
             for k in 0..n {
                 x[k] = ext[pl + k][l];
@@ -391,14 +396,19 @@ impl ZeroPhase for Butterworth {
     }
 
     fn apply_many(&self, xs: &mut [&mut [f64]], pad_left: bool, pad_right: bool) {
-        for group in xs.chunks_mut(LANES) {
-            if group.len() < LANES {
-                for x in group.iter_mut() {
-                    self.apply(x, pad_left, pad_right);
-                }
-            } else {
-                self.apply_lanes(group, pad_left, pad_right);
-            }
+        // Eight channels hide the latency of the recursions; the rest go by four, then alone.
+        let wide = xs.len() / 8 * 8;
+        let (a, rest) = xs.split_at_mut(wide);
+        for group in a.chunks_mut(8) {
+            self.apply_lanes::<8>(group, pad_left, pad_right);
+        }
+        let mid = rest.len() / 4 * 4;
+        let (b, rest) = rest.split_at_mut(mid);
+        for group in b.chunks_mut(4) {
+            self.apply_lanes::<4>(group, pad_left, pad_right);
+        }
+        for x in rest.iter_mut() {
+            self.apply(x, pad_left, pad_right);
         }
     }
 
@@ -1109,12 +1119,12 @@ mod tests {
 
     #[test]
     fn side_by_side_filtering_equals_one_channel_at_a_time() {
-        // 6 channels: one group of LANES and a remainder, with and without end padding; order 5
+        // 13 channels: a group of 8, one of 4 and one alone, with and without end padding; order 5
         // includes the first-order section.
         for order in [4, 5] {
             let f = Butterworth::lowpass(order, 3.0, 200.0).unwrap();
             for (pl, pr) in [(true, true), (false, true), (true, false), (false, false)] {
-                let chans: Vec<Vec<f64>> = (0..6)
+                let chans: Vec<Vec<f64>> = (0..13)
                     .map(|c| {
                         (0..700)
                             .map(|k| sines(k as f64 * 0.005 + c as f64).0 + 0.01 * c as f64)

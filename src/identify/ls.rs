@@ -195,7 +195,7 @@ fn householder_update(r: &mut [f64], k: usize, b: &mut [f64], ld: usize, m: usiz
 }
 
 /// Dot product with four partial sums (vectorises without reassociation licence).
-fn dot(a: &[f64], b: &[f64]) -> f64 {
+pub fn dot(a: &[f64], b: &[f64]) -> f64 {
     let mut acc = [0.0; 4];
     let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
     let (ra, rb) = (ca.remainder(), cb.remainder());

@@ -210,13 +210,6 @@ impl Prepared {
         (r.floor() as usize).max(1)
     }
 
-    /// Grid samples `[start, end)` of block `b` of `nblocks` (consistent with `block_of`).
-    fn block_range(&self, b: usize, nblocks: usize) -> (usize, usize) {
-        let span = (self.keep.1 - self.keep.0).max(1);
-        let at = |b: usize| self.keep.0 + (b * span).div_ceil(nblocks);
-        (at(b), at(b + 1).min(self.keep.1))
-    }
-
     /// Block of grid sample `k` when the kept range is split into `nblocks`.
     fn block_of(&self, k: usize, nblocks: usize) -> usize {
         let span = (self.keep.1 - self.keep.0).max(1);
@@ -377,14 +370,13 @@ impl<'a> Rows<'a> {
 /// decimated rows equal those over all rows to that order, at a fraction of the cost.
 pub const KEEP_RATE_PER_CUTOFF: f64 = 20.0;
 
-/// Parallel-filtered regression of one file into `[block][joint]` accumulators, using the
-/// first `frac` of each block's samples (1 = all), decimated to [`KEEP_RATE_PER_CUTOFF`]·fc.
+/// Parallel-filtered regression of one file into `[block][joint]` accumulators, rows decimated
+/// to [`KEEP_RATE_PER_CUTOFF`]·fc.
 fn accumulate_fit(
     p: &Prepared,
     base: &BaseModel,
     layout: &Layout,
     nblocks: usize,
-    frac: f64,
 ) -> Vec<Vec<Accumulator>> {
     let (n, nc) = (layout.dof, layout.ncols());
     let g = p.est.grid;
@@ -400,36 +392,15 @@ fn accumulate_fit(
         .collect();
     let active: Vec<Vec<usize>> = (0..n).map(|j| layout.active(j)).collect();
     let tau = grid_tau(p);
-    // Used samples: a leading share of each block; neighbouring shares closer than the
-    // filter's margins are filtered in one piece.
-    let segs: Vec<(usize, usize)> = (0..nblocks)
-        .map(|blk| {
-            let (s0, s1) = p.block_range(blk, nblocks);
-            let used = ((s1 - s0) as f64 * frac).ceil() as usize;
-            (s0, s0 + used.clamp(1, (s1 - s0).max(1)))
-        })
-        .filter(|(s0, s1)| s1 > s0)
-        .collect();
-    let mut groups: Vec<(usize, usize)> = Vec::new();
-    for &(s0, s1) in &segs {
-        match groups.last_mut() {
-            Some(last) if s0 <= last.1 + 2 * reach => last.1 = s1,
-            _ => groups.push((s0, s1)),
-        }
-    }
-    let used = |k: usize| -> bool {
-        (k - p.keep.0) % decim == 0 && {
-            let blk = p.block_of(k, nblocks);
-            k < segs.get(blk).map_or(0, |s| s.1)
-        }
-    };
+    let used = |k: usize| -> bool { (k - p.keep.0) % decim == 0 };
     let mut rows = Rows::new(base, layout);
     let mut buf = vec![0.0; n * nc];
     let (mut q, mut dq, mut ddq) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-    for &(g0, g1) in &groups {
-        let mut a = g0;
-        while a < g1 {
-            let b = (a + core).min(g1);
+    {
+        let (k0, k1) = p.keep;
+        let mut a = k0;
+        while a < k1 {
+            let b = (a + core).min(k1);
             let lo = a.saturating_sub(reach);
             let hi = (b + reach).min(g.n);
             let w = hi - lo;
@@ -512,13 +483,33 @@ fn grid_tau(p: &Prepared) -> Vec<Vec<f64>> {
 fn for_raw_samples(
     p: &Prepared,
     stride: usize,
+    f: impl FnMut(usize, &[f64], &[f64], &[f64], &[f64]),
+) {
+    for_raw_range_by(p, p.raw_keep.0, p.raw_keep.1, stride, f)
+}
+
+/// [`for_raw_samples`] over raw samples `lo..hi` (within the used range).
+fn for_raw_range(
+    p: &Prepared,
+    lo: usize,
+    hi: usize,
+    f: impl FnMut(usize, &[f64], &[f64], &[f64], &[f64]),
+) {
+    for_raw_range_by(p, lo, hi, 1, f)
+}
+
+fn for_raw_range_by(
+    p: &Prepared,
+    lo: usize,
+    hi: usize,
+    stride: usize,
     mut f: impl FnMut(usize, &[f64], &[f64], &[f64], &[f64]),
 ) {
     let n = p.dof();
     let tau = p.traj.tau.as_deref().unwrap_or(&[]);
     let (mut q, mut dq, mut ddq) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
     let uniform = !p.est.report.resampled && p.est.grid.n == p.traj.len();
-    for k in (p.raw_keep.0..p.raw_keep.1).step_by(stride.max(1)) {
+    for k in (lo..hi).step_by(stride.max(1)) {
         for j in 0..n {
             if uniform {
                 (q[j], dq[j], ddq[j]) = (p.est.q[j][k], p.est.dq[j][k], p.est.ddq[j][k]);
@@ -530,64 +521,146 @@ fn for_raw_samples(
     }
 }
 
-/// Unfiltered regression against the measured torque, `[block][joint]` (for errors), over the
-/// raw samples in the first `frac` of each block (1 = all).
-fn accumulate_raw(
-    p: &Prepared,
+/// A model judged against the measured torque: its columns, its parameters fitted on all
+/// training blocks and, for the held-out error, those fitted without each block.
+pub struct Judged<'a> {
+    pub subset: &'a [usize],
+    pub x: &'a [f64],
+    pub loo: Option<&'a [Vec<f64>]>,
+}
+
+/// Per model and joint, `Σ (τ − τ̂)²` over the raw samples (with the full-data parameters) and
+/// the same with each block predicted by the fit without it; per joint `Σ τ²`.
+#[derive(Debug, Clone)]
+pub struct RawSums {
+    pub sse: Vec<Vec<f64>>,
+    pub heldout: Vec<Vec<f64>>,
+    pub tss: Vec<f64>,
+}
+
+impl RawSums {
+    fn zero(models: usize, n: usize) -> Self {
+        RawSums {
+            sse: vec![vec![0.0; n]; models],
+            heldout: vec![vec![0.0; n]; models],
+            tss: vec![0.0; n],
+        }
+    }
+
+    fn add(&mut self, o: &RawSums) {
+        for (a, b) in self.sse.iter_mut().zip(&o.sse) {
+            a.iter_mut().zip(b).for_each(|(x, y)| *x += y);
+        }
+        for (a, b) in self.heldout.iter_mut().zip(&o.heldout) {
+            a.iter_mut().zip(b).for_each(|(x, y)| *x += y);
+        }
+        self.tss.iter_mut().zip(&o.tss).for_each(|(x, y)| *x += y);
+    }
+
+    /// Errors of model `m` with its full-data parameters.
+    pub fn errors(&self, m: usize) -> Errors {
+        let per_joint = (0..self.tss.len())
+            .map(|j| {
+                if self.tss[j] > 0.0 {
+                    (self.sse[m][j] / self.tss[j]).sqrt()
+                } else {
+                    f64::NAN
+                }
+            })
+            .collect();
+        let overall = (self.sse[m].iter().sum::<f64>() / self.tss.iter().sum::<f64>()).sqrt();
+        Errors { per_joint, overall }
+    }
+
+    /// Held-out relative RMS error of model `m`, pooled over joints.
+    pub fn heldout(&self, m: usize) -> f64 {
+        (self.heldout[m].iter().sum::<f64>() / self.tss.iter().sum::<f64>()).sqrt()
+    }
+}
+
+/// Residuals of `models` against the torque as measured, over the raw samples of `files`;
+/// `blocks` (blocks per file) names the block whose leave-out parameters predict a sample.
+/// One pass, in parallel over chunks; the chunk sums are added in a fixed order
+/// (deterministic).
+pub fn raw_sums(
     base: &BaseModel,
     layout: &Layout,
-    nblocks: usize,
-    frac: f64,
-) -> Vec<Vec<Accumulator>> {
+    files: &[Prepared],
+    blocks: Option<&[usize]>,
+    models: &[Judged],
+) -> RawSums {
     let (n, nc) = (layout.dof, layout.ncols());
-    let mut accs: Vec<Vec<Accumulator>> = layout
-        .accumulators()
-        .into_iter()
-        .map(|a| vec![a; nblocks])
-        .collect();
-    let ranges: Vec<(usize, usize)> = (0..nblocks)
-        .map(|b| {
-            let (s0, s1) = p.block_range(b, nblocks);
-            let used = ((s1 - s0) as f64 * frac).ceil() as usize;
-            (s0, s0 + used.max(1))
-        })
-        .collect();
-    let mut rows = Rows::new(base, layout);
-    let g = p.est.grid;
-    // Rows in batches (`[sample][joint][column | τ]`), pushed per joint in parallel.
-    const BATCH: usize = 4096;
-    let stride = n * (nc + 1);
-    let mut batch: Vec<f64> = Vec::with_capacity(BATCH * stride);
-    let mut batch_blk: Vec<usize> = Vec::with_capacity(BATCH);
-    let mut y = vec![0.0; n * nc];
-    let flush = |batch: &mut Vec<f64>, blks: &mut Vec<usize>, accs: &mut Vec<Vec<Accumulator>>| {
-        accs.par_iter_mut().enumerate().for_each(|(j, acc)| {
-            for (i, &blk) in blks.iter().enumerate() {
-                let at = i * stride + j * (nc + 1);
-                acc[blk].push(&batch[at..at + nc + 1]);
-            }
-        });
-        batch.clear();
-        blks.clear();
-    };
-    for_raw_samples(p, 1, |k, q, dq, ddq, tau| {
-        let kg = (((p.traj.t[k] - g.t0) / g.dt).round().max(0.0) as usize).min(g.n - 1);
-        let blk = p.block_of(kg, nblocks);
-        if kg >= ranges[blk].1 {
-            return;
+    let active: Vec<Vec<usize>> = (0..n).map(|j| layout.active(j)).collect();
+    let mut total = RawSums::zero(models.len(), n);
+    let mut offset = 0;
+    for (fi, p) in files.iter().enumerate() {
+        let nblocks = blocks.map_or(1, |b| b[fi]);
+        let g = p.est.grid;
+        let (lo, hi) = p.raw_keep;
+        // Per joint, the model's parameters spread over the joint's active columns (zero for
+        // columns outside the model): `[model][1 + block][joint][active column]`, so each
+        // prediction is one contiguous dot product.
+        let spread = |subset: &[usize], x: &[f64], j: usize| -> Vec<f64> {
+            active[j]
+                .iter()
+                .map(|c| subset.iter().position(|s| s == c).map_or(0.0, |k| x[k]))
+                .collect()
+        };
+        let coef: Vec<Vec<Vec<Vec<f64>>>> = models
+            .iter()
+            .map(|m| {
+                let mut v = vec![(0..n).map(|j| spread(m.subset, m.x, j)).collect()];
+                if let Some(loo) = m.loo {
+                    for b in 0..nblocks {
+                        v.push(
+                            (0..n)
+                                .map(|j| spread(m.subset, &loo[offset + b], j))
+                                .collect(),
+                        );
+                    }
+                }
+                v
+            })
+            .collect();
+        const CHUNK: usize = 16_384;
+        let starts: Vec<usize> = (lo..hi).step_by(CHUNK).collect();
+        let parts: Vec<RawSums> = starts
+            .par_iter()
+            .map(|&a| {
+                let mut sums = RawSums::zero(models.len(), n);
+                let mut rows = Rows::new(base, layout);
+                let mut buf = vec![0.0; n * nc];
+                let mut row: Vec<Vec<f64>> = active.iter().map(|a| vec![0.0; a.len()]).collect();
+                for_raw_range(p, a, (a + CHUNK).min(hi), |k, q, dq, ddq, tau| {
+                    let kg = (((p.traj.t[k] - g.t0) / g.dt).round().max(0.0) as usize).min(g.n - 1);
+                    let blk = p.block_of(kg, nblocks);
+                    rows.fill(q, dq, ddq, &mut buf);
+                    for j in 0..n {
+                        for (v, &c) in row[j].iter_mut().zip(&active[j]) {
+                            *v = buf[j * nc + c];
+                        }
+                        sums.tss[j] += tau[j] * tau[j];
+                    }
+                    for (m, model) in models.iter().enumerate() {
+                        for j in 0..n {
+                            let e = tau[j] - ls::dot(&row[j], &coef[m][0][j]);
+                            sums.sse[m][j] += e * e;
+                            if model.loo.is_some() {
+                                let e = tau[j] - ls::dot(&row[j], &coef[m][1 + blk][j]);
+                                sums.heldout[m][j] += e * e;
+                            }
+                        }
+                    }
+                });
+                sums
+            })
+            .collect();
+        for part in &parts {
+            total.add(part);
         }
-        rows.fill(q, dq, ddq, &mut y);
-        for j in 0..n {
-            batch.extend_from_slice(&y[j * nc..(j + 1) * nc]);
-            batch.push(tau[j]);
-        }
-        batch_blk.push(blk);
-        if batch_blk.len() == BATCH {
-            flush(&mut batch, &mut batch_blk, &mut accs);
-        }
-    });
-    flush(&mut batch, &mut batch_blk, &mut accs);
-    finish_transposed(accs, nblocks)
+        offset += nblocks;
+    }
+    total
 }
 
 /// Merges `[block][joint]` accumulators into `[joint]` (at least one block).
@@ -611,8 +684,8 @@ pub struct Problem {
     total: Vec<Accumulator>,
     /// `[block][joint]`: factor of all blocks but this one.
     loo: Vec<Vec<DMatrix<f64>>>,
-    /// `[block][joint]`, unfiltered rows against the measured torque.
-    raw: Vec<Vec<Accumulator>>,
+    /// Blocks per training file, in order.
+    file_blocks: Vec<usize>,
     files: String,
 }
 
@@ -620,7 +693,7 @@ impl Problem {
     fn new(
         layout: Layout,
         blocks: Vec<Vec<Accumulator>>,
-        raw: Vec<Vec<Accumulator>>,
+        file_blocks: Vec<usize>,
         files: String,
     ) -> Self {
         let n = layout.dof;
@@ -653,7 +726,7 @@ impl Problem {
             blocks,
             total,
             loo,
-            raw,
+            file_blocks,
             files,
         }
     }
@@ -665,50 +738,60 @@ impl Problem {
         train: &[Prepared],
         target_blocks: usize,
     ) -> Self {
-        Self::build_sampled(base, layout, train, target_blocks, usize::MAX)
-    }
-
-    /// As [`Problem::build`] from at most about `max_samples` samples: the same leading share
-    /// of every block (so every block, and the held-out test, still covers the whole log).
-    pub fn build_sampled(
-        base: &BaseModel,
-        layout: Layout,
-        train: &[Prepared],
-        target_blocks: usize,
-        max_samples: usize,
-    ) -> Self {
         let total_rows: usize = train.iter().map(|p| p.keep.1 - p.keep.0).sum();
-        let frac = (max_samples as f64 / total_rows.max(1) as f64).min(1.0);
-        let (mut blocks, mut raw) = (Vec::new(), Vec::new());
+        let (mut blocks, mut file_blocks) = (Vec::new(), Vec::new());
         for p in train {
             let share = (target_blocks as f64 * (p.keep.1 - p.keep.0) as f64
                 / total_rows.max(1) as f64)
                 .round() as usize;
-            blocks.extend(accumulate_fit(p, base, &layout, share.max(2), frac));
-            raw.extend(accumulate_raw(p, base, &layout, share.max(2), frac));
+            blocks.extend(accumulate_fit(p, base, &layout, share.max(2)));
+            file_blocks.push(share.max(2));
         }
         let files = train
             .iter()
             .map(|p| p.name.as_str())
             .collect::<Vec<_>>()
             .join(", ");
-        Problem::new(layout, blocks, raw, files)
+        Problem::new(layout, blocks, file_blocks, files)
     }
 
-    /// Held-out relative RMS error against the *measured* torque: each block predicted by the
-    /// fit on the other blocks, `‖τ̂−τ‖/‖τ‖` pooled over blocks and joints.
-    pub fn cv_raw(&self, subset: &[usize], w: &[f64]) -> Result<f64, RankError> {
-        let (mut sse, mut tss) = (0.0, 0.0);
-        for b in 0..self.blocks() {
-            let f: Vec<(&DMatrix<f64>, f64)> =
-                self.loo[b].iter().zip(w).map(|(r, &w)| (r, w)).collect();
-            let (x, _) = ls::solve_x(&f, subset).map_err(|e| self.rank_error(&e.dependent))?;
-            for a in &self.raw[b] {
-                sse += a.sse(subset, &x);
-                tss += a.target_ss();
-            }
-        }
-        Ok((sse / tss).sqrt())
+    /// Held-out relative RMS error against the *measured* torque of the training files this
+    /// problem was built from: each block predicted by the fit on the other blocks,
+    /// `‖τ̂−τ‖/‖τ‖` pooled over blocks and joints.
+    pub fn cv_raw(
+        &self,
+        base: &BaseModel,
+        train: &[Prepared],
+        subset: &[usize],
+        w: &[f64],
+    ) -> Result<f64, RankError> {
+        let loo = self.loo_fits_strict(subset, w)?;
+        let x = vec![0.0; subset.len()];
+        let m = [Judged {
+            subset,
+            x: &x,
+            loo: Some(&loo),
+        }];
+        let sums = raw_sums(base, &self.layout, train, Some(self.raw_blocks()), &m);
+        Ok(sums.heldout(0))
+    }
+
+    /// Blocks per training file, for [`raw_sums`].
+    pub fn raw_blocks(&self) -> &[usize] {
+        &self.file_blocks
+    }
+
+    /// Parameters of every leave-one-block-out fit (an error if one is rank-deficient).
+    pub fn loo_fits_strict(&self, subset: &[usize], w: &[f64]) -> Result<Vec<Vec<f64>>, RankError> {
+        (0..self.blocks())
+            .map(|b| {
+                let f: Vec<(&DMatrix<f64>, f64)> =
+                    self.loo[b].iter().zip(w).map(|(r, &w)| (r, w)).collect();
+                ls::solve_x(&f, subset)
+                    .map(|(x, _)| x)
+                    .map_err(|e| self.rank_error(&e.dependent))
+            })
+            .collect()
     }
 
     pub fn blocks(&self) -> usize {
@@ -822,29 +905,6 @@ impl Problem {
 pub struct Errors {
     pub per_joint: Vec<f64>,
     pub overall: f64,
-}
-
-fn errors(accs: &[&[Accumulator]], subset: &[usize], x: &[f64]) -> Errors {
-    let n = accs.first().map_or(0, |a| a.len());
-    let mut sse = vec![0.0; n];
-    let mut tss = vec![0.0; n];
-    for file in accs {
-        for (j, a) in file.iter().enumerate() {
-            sse[j] += a.sse(subset, x);
-            tss[j] += a.target_ss();
-        }
-    }
-    let per_joint = (0..n)
-        .map(|j| {
-            if tss[j] > 0.0 {
-                (sse[j] / tss[j]).sqrt()
-            } else {
-                f64::NAN
-            }
-        })
-        .collect();
-    let overall = (sse.iter().sum::<f64>() / tss.iter().sum::<f64>()).sqrt();
-    Errors { per_joint, overall }
 }
 
 /// One identified parameter.
@@ -980,7 +1040,9 @@ pub fn run(
     }
     let mut cache = PrepCache::default();
     let (fc, scan) = choose_cutoff(&base, table.as_ref(), &train, cfg, &mut cache)?;
-    let preps = cache.get_all(&train, cfg, fc)?;
+    // Free the scan's estimates before the final ones are made (peak memory of one copy).
+    drop(cache);
+    let preps = PrepCache::default().get_all(&train, cfg, fc)?;
     let val = match validate {
         Some(v) => Some(Prepared::with_cutoff(
             Arc::new(v),
@@ -1042,9 +1104,37 @@ impl PrepCache {
     }
 }
 
-/// Most grid samples the cut-off scan fits per cut-off (a leading share of every time block of
-/// longer logs; the final fit uses all samples).
+/// Most samples the cut-off scan fits per cut-off: longer training sets are scanned on
+/// [`SCAN_PIECES`] evenly spaced pieces of each file (the final fit uses every sample).
 pub const SCAN_SAMPLES: usize = 100_000;
+
+/// Pieces per file of the cut-off scan of a long training set.
+pub const SCAN_PIECES: usize = 4;
+
+/// The files the cut-off scan fits: `train` itself up to [`SCAN_SAMPLES`] samples in all, else
+/// [`SCAN_PIECES`] evenly spaced pieces of each file, of lengths proportional to the files'
+/// (each piece filtered on its own, as a file of its own).
+pub fn scan_pieces(train: &[Arc<Trajectory>]) -> Vec<Arc<Trajectory>> {
+    let total: usize = train.iter().map(|t| t.len()).sum();
+    if total <= SCAN_SAMPLES {
+        return train.to_vec();
+    }
+    let mut out = Vec::new();
+    for t in train {
+        let share = (SCAN_SAMPLES as f64 * t.len() as f64 / total as f64) as usize;
+        let piece = share / SCAN_PIECES;
+        if piece < 4 * MIN_SAMPLES {
+            out.push(t.clone());
+            continue;
+        }
+        let gap = (t.len() - SCAN_PIECES * piece) / SCAN_PIECES;
+        for i in 0..SCAN_PIECES {
+            let lo = gap / 2 + i * (piece + gap);
+            out.push(Arc::new(t.slice(lo, lo + piece)));
+        }
+    }
+    out
+}
 
 /// One point of the cut-off scan.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -1093,21 +1183,22 @@ pub fn choose_cutoff(
     }
     let edge_fc = grid[0];
     let layout = make_layout(base, table, &first, cfg).0;
+    let scan_files = scan_pieces(train);
     let all: Vec<Term> = layout.terms.clone();
     let mut trials = Vec::new();
     let mut best: Option<(f64, f64)> = None;
     for &fc in &grid {
-        let preps: Vec<Prepared> = train
+        // Not cached: one cut-off's estimates at a time (memory stays that of one copy).
+        let preps: Vec<Prepared> = scan_files
             .iter()
-            .map(|t| cache.get(t, cfg, Some(fc), Some(edge_fc)))
+            .map(|t| Prepared::with_cutoff(t.clone(), cfg, Some(fc), Some(edge_fc)))
             .collect::<Result<_, _>>()?;
-        let problem =
-            Problem::build_sampled(base, layout.clone(), &preps, cfg.blocks, SCAN_SAMPLES);
+        let problem = Problem::build(base, layout.clone(), &preps, cfg.blocks);
         let subset = problem.subset(&all);
         let Ok(w) = problem.weights(&subset) else {
             continue;
         };
-        let Ok(e) = problem.cv_raw(&subset, &w) else {
+        let Ok(e) = problem.cv_raw(base, &preps, &subset, &w) else {
             continue;
         };
         trials.push(CutoffTrial {
@@ -1236,9 +1327,6 @@ pub fn run_prepared(
     let names = layout.base_names.clone();
     let scales = layout.scales.clone();
     let problem = Problem::build(base, layout.clone(), train, cfg.blocks);
-    let raw_train: Vec<Accumulator> = merge_blocks(&problem.raw, n);
-    let raw_val: Option<Vec<Accumulator>> =
-        val.map(|p| merge_blocks(&accumulate_raw(p, base, &layout, 1, 1.0), n));
 
     // Declared (rigid) model first: its rank is the excitation check.
     let rigid = problem.subset(&[]);
@@ -1252,36 +1340,8 @@ pub fn run_prepared(
             collinear: Vec::new(),
         },
     };
-    let model_result = |terms: &[Term]| -> Result<(ModelResult, Vec<f64>, ls::Fit), IdentifyError> {
-        let subset = problem.subset(terms);
-        let w = problem.weights(&subset).map_err(|e| with_hint(e, train))?;
-        let fit = problem.fit(&subset, &w).map_err(|e| with_hint(e, train))?;
-        let heldout = problem
-            .cv_raw(&subset, &w)
-            .map_err(|e| with_hint(e, train))?;
-        let r = ModelResult {
-            terms: terms.iter().map(Term::label).collect(),
-            train: errors(&[raw_train.as_slice()], &subset, &fit.x),
-            validation: raw_val
-                .as_ref()
-                .map(|v| errors(&[v.as_slice()], &subset, &fit.x)),
-            heldout_rms: heldout,
-            subset,
-            x: fit.x.clone(),
-        };
-        Ok((r, w, fit))
-    };
-    let (before, _, _) = model_result(&[])?;
-    let (after, w, fit) = model_result(&selection.terms)?;
 
-    // rigid → +declared → +each added effect.
-    let mut steps = vec![StepRow {
-        model: "rigid".into(),
-        added: None,
-        train: before.train.clone(),
-        heldout_rms: before.heldout_rms,
-        validation: before.validation.clone(),
-    }];
+    // The models reported: rigid, the final one, and rigid → +declared → +each added effect.
     let mut added_steps: Vec<Vec<Term>> = Vec::new();
     if !declared.is_empty() {
         added_steps.push(declared.clone());
@@ -1289,14 +1349,69 @@ pub fn run_prepared(
     for s in &selection.steps {
         added_steps.push(vec![s.added]);
     }
+    let mut model_terms: Vec<Vec<Term>> = vec![Vec::new(), selection.terms.clone()];
     let mut acc_terms: Vec<Term> = Vec::new();
     for add in &added_steps {
         acc_terms.extend(add.iter().copied());
-        let (m, _, _) = model_result(&acc_terms)?;
+        model_terms.push(acc_terms.clone());
+    }
+    struct Fitted {
+        subset: Vec<usize>,
+        w: Vec<f64>,
+        fit: ls::Fit,
+        loo: Vec<Vec<f64>>,
+    }
+    let fitted: Vec<Fitted> = model_terms
+        .iter()
+        .map(|terms| -> Result<Fitted, IdentifyError> {
+            let subset = problem.subset(terms);
+            let w = problem.weights(&subset).map_err(|e| with_hint(e, train))?;
+            let fit = problem.fit(&subset, &w).map_err(|e| with_hint(e, train))?;
+            let loo = problem
+                .loo_fits_strict(&subset, &w)
+                .map_err(|e| with_hint(e, train))?;
+            Ok(Fitted {
+                subset,
+                w,
+                fit,
+                loo,
+            })
+        })
+        .collect::<Result<_, _>>()?;
+    let judged: Vec<Judged> = fitted
+        .iter()
+        .map(|f| Judged {
+            subset: &f.subset,
+            x: &f.fit.x,
+            loo: Some(&f.loo),
+        })
+        .collect();
+    let train_sums = raw_sums(base, &layout, train, Some(problem.raw_blocks()), &judged);
+    let val_sums = val.map(|p| raw_sums(base, &layout, std::slice::from_ref(p), None, &judged));
+    let result = |m: usize| ModelResult {
+        terms: model_terms[m].iter().map(Term::label).collect(),
+        train: train_sums.errors(m),
+        validation: val_sums.as_ref().map(|v| v.errors(m)),
+        heldout_rms: train_sums.heldout(m),
+        subset: fitted[m].subset.clone(),
+        x: fitted[m].fit.x.clone(),
+    };
+    let before = result(0);
+    let after = result(1);
+    let (w, fit) = (fitted[1].w.clone(), fitted[1].fit.clone());
+    let mut steps = vec![StepRow {
+        model: "rigid".into(),
+        added: None,
+        train: before.train.clone(),
+        heldout_rms: before.heldout_rms,
+        validation: before.validation.clone(),
+    }];
+    for (i, add) in added_steps.iter().enumerate() {
+        let m = result(2 + i);
         steps.push(StepRow {
             model: format!(
                 "rigid + {}",
-                acc_terms
+                model_terms[2 + i]
                     .iter()
                     .map(Term::label)
                     .collect::<Vec<_>>()
@@ -1562,4 +1677,50 @@ pub fn pooled_validation(outcomes: &[Outcome]) -> Option<(Errors, Errors)> {
         overall: (s.iter().sum::<f64>() / tss.iter().sum::<f64>()).sqrt(),
     };
     Some((mk(&acc[0]), mk(&acc[1])))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn log(len: usize) -> Arc<Trajectory> {
+        Arc::new(Trajectory {
+            source: "log.csv".into(),
+            dof: 1,
+            t: (0..len).map(|k| k as f64 * 1e-3).collect(),
+            q: (0..len).map(|k| k as f64).collect(),
+            dq: None,
+            ddq: None,
+            tau: Some(vec![0.0; len]),
+        })
+    }
+
+    #[test]
+    fn short_training_sets_are_scanned_whole_long_ones_on_spread_pieces() {
+        let short = vec![log(30_000), log(40_000)];
+        let same = scan_pieces(&short);
+        assert!(same.iter().zip(&short).all(|(a, b)| Arc::ptr_eq(a, b)));
+
+        let long = vec![log(900_000), log(300_000)];
+        let pieces = scan_pieces(&long);
+        assert_eq!(pieces.len(), 2 * SCAN_PIECES);
+        let total: usize = pieces.iter().map(|p| p.len()).sum();
+        assert!(
+            total <= SCAN_SAMPLES && total > SCAN_SAMPLES * 9 / 10,
+            "{total}"
+        );
+        // Proportional to the files, evenly spread over each, in order, rows copied intact.
+        let first: Vec<&Arc<Trajectory>> = pieces[..SCAN_PIECES].iter().collect();
+        assert_eq!(first[0].len(), 3 * pieces[SCAN_PIECES].len());
+        let starts: Vec<f64> = first.iter().map(|p| p.q[0]).collect();
+        assert!(starts[0] > 0.0 && starts[3] + first[3].len() as f64 <= 900_000.0);
+        let step = starts[1] - starts[0];
+        assert!(starts.windows(2).all(|w| w[1] - w[0] == step) && step > 200_000.0);
+        assert!(first[1]
+            .q
+            .iter()
+            .enumerate()
+            .all(|(i, &v)| v == starts[1] + i as f64));
+        assert!(first[0].source.starts_with("log.csv[rows "));
+    }
 }
