@@ -383,7 +383,17 @@ pub fn markdown(o: &Outcome, command: &str, plots: &[String]) -> String {
         );
     }
     if !o.cutoff_scan.is_empty() {
-        let _ = writeln!(m, "\nCut-off chosen automatically: smallest held-out error against the measured torque over the scan (rigid body + all candidate effects):\n");
+        let total: usize = o.train.iter().map(|f| f.rows).sum();
+        let scope = if total > crate::identify::SCAN_SAMPLES {
+            format!(
+                "; fitted on {} evenly spaced pieces of each training file, {} samples in all — the final fit uses every sample",
+                crate::identify::SCAN_PIECES,
+                crate::identify::SCAN_SAMPLES
+            )
+        } else {
+            String::new()
+        };
+        let _ = writeln!(m, "\nCut-off chosen automatically: smallest held-out error against the measured torque over the scan (rigid body + all candidate effects{scope}):\n");
         let _ = writeln!(m, "| cut-off (Hz) | held-out error |");
         let _ = writeln!(m, "|---|---|");
         for c in &o.cutoff_scan {
@@ -392,7 +402,9 @@ pub fn markdown(o: &Outcome, command: &str, plots: &[String]) -> String {
     }
     let _ = writeln!(
         m,
-        "\nThe same zero-phase filter was applied to the measured torque and to every regressor column (parallel filtering) to build the regression; errors are computed against the unfiltered torque at the file's own sample times. Filter edges are dropped."
+        "\nThe same zero-phase filter was applied to the measured torque and to every regressor column (parallel filtering) to build the regression, whose rows are then kept every {} grid sample(s), at least {}× the cut-off (the filtered columns carry nothing above a few cut-offs); errors are computed against the unfiltered torque at every one of the file's own samples. Filter edges are dropped.",
+        o.train.first().map_or(1, |f| f.regression_row_every),
+        crate::identify::KEEP_RATE_PER_CUTOFF
     );
     let _ = writeln!(m, "\n## Plots\n");
     for p in plots {

@@ -8,19 +8,27 @@
 //!    and differentiated for q̈). Files with both q̇ and q̈ are used as given.
 //! 2. **Regression** with *parallel filtering*: on each file's uniform grid the rows
 //!    `[Yb(q,q̇,q̈) | effect columns | τ]` are filtered column by column with the *same* zero-phase
-//!    filter (also τ), in overlapping chunks so memory does not grow with the log length, and
-//!    folded into incremental QR factors ([`ls::Accumulator`]) per joint and per time block.
-//!    Filter edges are dropped. Several files are fitted together, each filtered on its own.
+//!    filter (also τ), in overlapping chunks so memory does not grow with the log length, kept
+//!    at [`KEEP_RATE_PER_CUTOFF`] times the cut-off (Gautier's decimation: nothing above a few
+//!    cut-offs survives the filter) and folded into incremental QR factors
+//!    ([`ls::Accumulator`]) per joint and per time block; a joint's factor holds only the
+//!    columns that can be non-zero in its rows. Filter edges are dropped. Several files are
+//!    fitted together, each filtered on its own.
 //! 3. **Weighted least squares**: each joint's rows are weighted by the inverse of its residual
 //!    standard deviation (two passes), solved by QR over the stacked factors. Parameter standard
 //!    deviations come from a block jackknife over the time blocks (honest under the residual
 //!    autocorrelation that filtering creates), reported also as %σ = 100·σ/|θ|. No physical
 //!    consistency constraints are imposed (plain least squares); the condition number of the
 //!    weighted regressor is reported.
-//! 4. **Errors** are computed against the torque *as measured in the file* (unfiltered), at the
-//!    file's own sample times, with the states interpolated from the estimate: relative RMS per
-//!    joint `‖τ̂ⱼ−τⱼ‖/‖τⱼ‖` and overall `‖τ̂−τ‖/‖τ‖`, for the declared (rigid) and the augmented
-//!    model, on training and validation data.
+//! 4. **Errors** are computed against the torque *as measured in the file* (unfiltered), at
+//!    every one of the file's own sample times, with the states interpolated from the estimate,
+//!    by predicting each reported model directly ([`raw_sums`]): relative RMS per joint
+//!    `‖τ̂ⱼ−τⱼ‖/‖τⱼ‖` and overall `‖τ̂−τ‖/‖τ‖`, for the declared (rigid) and the augmented
+//!    model, on training and validation data, and held out (each time block predicted by the
+//!    fit without it).
+//!
+//! The automatic cut-off ([`choose_cutoff`]) scans candidates by that held-out error; training
+//! sets over [`SCAN_SAMPLES`] samples are scanned on evenly spaced pieces ([`scan_pieces`]).
 
 pub mod base;
 pub mod ls;
@@ -944,6 +952,9 @@ pub struct FileInfo {
     pub rows_used: usize,
     pub duration_s: f64,
     pub derivative: DerivativeReport,
+    /// Every how many grid samples a filtered row enters the regression (see
+    /// [`KEEP_RATE_PER_CUTOFF`]).
+    pub regression_row_every: usize,
 }
 
 impl FileInfo {
@@ -955,6 +966,7 @@ impl FileInfo {
             rows_used: p.raw_keep.1 - p.raw_keep.0,
             duration_s: t[t.len() - 1] - t[0],
             derivative: p.est.report.clone(),
+            regression_row_every: p.decimation(),
         }
     }
 }
