@@ -42,6 +42,14 @@ fn coef(o: &Outcome, label: &str) -> f64 {
         .map_or(f64::NAN, |(_, e)| e.value)
 }
 
+/// Each effect coefficient within `rel` of its truth.
+fn assert_coefs(o: &Outcome, truth: &[(&str, f64)], rel: f64) {
+    for &(label, t) in truth {
+        let v = coef(o, label);
+        assert!((v - t).abs() < rel * t, "{label} = {v} (truth {t})");
+    }
+}
+
 /// A planar 2-DOF arm with other geometry than the paper's (shorter first link, gravity along −x).
 const PLANAR2_OTHER: &str = r#"
 name = "planar2_short"
@@ -343,18 +351,32 @@ fn puma_with_two_undeclared_effects_finds_exactly_them() {
     .with_effect(Effect::Offset, 4, 0.15);
     let (o, _) = run_synth(&spec, &Config::default());
     assert_eq!(found(&o), ["offset5", "viscous2"], "found {:?}", found(&o));
-    for (label, truth) in [("viscous2", 0.8), ("offset5", 0.15)] {
-        let v = coef(&o, label);
-        assert!(
-            (v - truth).abs() < 0.1 * truth,
-            "{label} = {v} (truth {truth})"
-        );
-    }
+    assert_coefs(&o, &[("viscous2", 0.8), ("offset5", 0.15)], 0.1);
     let (before, after) = (
         o.before.validation.as_ref().unwrap().overall,
         o.after.validation.as_ref().unwrap().overall,
     );
     assert!(after < 0.5 * before, "validation {before} -> {after}");
+}
+
+/// A log longer than the cut-off scan's sample budget (150 s at 1 kHz): the scan runs on pieces,
+/// the final fit on every sample, and the undeclared effects are still found exactly, with their
+/// values.
+#[test]
+fn long_log_is_scanned_on_pieces_and_still_finds_the_effects() {
+    let spec = Spec {
+        duration: 150.0,
+        rate_hz: 1000.0,
+        ..Spec::new(arm_table("planar2"), 19)
+    }
+    .with_effect(Effect::Viscous, 1, 0.5)
+    .with_effect(Effect::Coulomb, 0, 0.8);
+    let (o, _) = run_synth(&spec, &Config::default());
+    assert!(o.train[0].rows > identify::SCAN_SAMPLES);
+    assert!(o.cutoff_scan.len() >= 2, "{:?}", o.cutoff_scan);
+    assert!(o.train[0].regression_row_every > 1);
+    assert_eq!(found(&o), ["coulomb1", "viscous2"], "found {:?}", found(&o));
+    assert_coefs(&o, &[("viscous2", 0.5), ("coulomb1", 0.8)], 0.05);
 }
 
 /// Armature on joint 1 (fixed axis) is the ZZR1 column: reported as merged, never found, and the
