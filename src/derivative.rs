@@ -200,24 +200,9 @@ struct Biquad {
 }
 
 impl Biquad {
-    /// Direct form II transposed over `x` in place, starting from the steady state for `x[0]`.
-    fn run(&self, x: &mut [f64]) {
-        let Some(&x0) = x.first() else { return };
-        // Steady state for a constant input x0 (each section has unit DC gain).
-        let mut z2 = (self.b[2] - self.a[1]) * x0;
-        let mut z1 = (self.b[1] - self.a[0]) * x0 + z2;
-        for v in x.iter_mut() {
-            let xi = *v;
-            let y = self.b[0] * xi + z1;
-            z1 = self.b[1] * xi - self.a[0] * y + z2;
-            z2 = self.b[2] * xi - self.a[1] * y;
-            *v = y;
-        }
-    }
-
-    /// [`Biquad::run`] of each section in turn, on interleaved channels in the order the
-    /// iterator gives, fused into one sweep (each section starts from the steady state for its
-    /// own first input, as when run one after the other).
+    /// The sections in cascade (direct form II transposed, each starting from the steady state
+    /// for its own first input) over `L` interleaved channels in the order the iterator gives,
+    /// fused into one sweep.
     fn cascade_lanes<'a, const L: usize>(
         sections: &[Biquad],
         mut x: impl Iterator<Item = &'a mut [f64; L]>,
@@ -321,15 +306,10 @@ impl Butterworth {
         self.order
     }
 
-    fn pass(&self, x: &mut [f64]) {
-        for s in &self.sections {
-            s.run(x);
-        }
-    }
-
-    /// [`ZeroPhase::apply`] on `L` channels at once, interleaved so the recursions of all
-    /// channels and sections run side by side in one sweep each way (the same operations per
-    /// channel as `apply`, so the same numbers bit for bit).
+    /// Zero-phase filtering of `L` equally long channels at once, interleaved so the recursions
+    /// of all channels and sections run side by side in one sweep each way (per channel the
+    /// same operations whatever `L`, so the same numbers bit for bit). Odd reflection about the
+    /// end points (value and slope continuous) pads the ends that are the signal's own.
     fn apply_lanes<const L: usize>(&self, xs: &mut [&mut [f64]], pad_left: bool, pad_right: bool) {
         let n = xs[0].len();
         if n < 2 {
@@ -373,26 +353,7 @@ impl Butterworth {
 
 impl ZeroPhase for Butterworth {
     fn apply(&self, x: &mut [f64], pad_left: bool, pad_right: bool) {
-        let n = x.len();
-        if n < 2 {
-            return;
-        }
-        let p = self.pad_len().min(n - 1);
-        let (pl, pr) = (if pad_left { p } else { 0 }, if pad_right { p } else { 0 });
-        let mut ext = Vec::with_capacity(n + pl + pr);
-        // Odd reflection about the end points keeps value and slope continuous.
-        for i in (1..=pl).rev() {
-            ext.push(2.0 * x[0] - x[i]);
-        }
-        ext.extend_from_slice(x);
-        for i in 1..=pr {
-            ext.push(2.0 * x[n - 1] - x[n - 1 - i]);
-        }
-        self.pass(&mut ext);
-        ext.reverse();
-        self.pass(&mut ext);
-        ext.reverse();
-        x.copy_from_slice(&ext[pl..pl + n]);
+        self.apply_lanes::<1>(&mut [x], pad_left, pad_right);
     }
 
     fn apply_many(&self, xs: &mut [&mut [f64]], pad_left: bool, pad_right: bool) {
@@ -1117,6 +1078,36 @@ mod tests {
         (q, dq, ddq)
     }
 
+    /// The textbook form: each section over the whole padded signal in turn, reverse, again,
+    /// reverse back.
+    fn reference_filtfilt(f: &Butterworth, x: &[f64], pad_left: bool, pad_right: bool) -> Vec<f64> {
+        let n = x.len();
+        let p = f.pad_len().min(n - 1);
+        let (pl, pr) = (if pad_left { p } else { 0 }, if pad_right { p } else { 0 });
+        let mut ext: Vec<f64> = (1..=pl).rev().map(|i| 2.0 * x[0] - x[i]).collect();
+        ext.extend_from_slice(x);
+        ext.extend((1..=pr).map(|i| 2.0 * x[n - 1] - x[n - 1 - i]));
+        let pass = |v: &mut Vec<f64>| {
+            for s in &f.sections {
+                let x0 = v[0];
+                let mut z2 = (s.b[2] - s.a[1]) * x0;
+                let mut z1 = (s.b[1] - s.a[0]) * x0 + z2;
+                for e in v.iter_mut() {
+                    let xi = *e;
+                    let y = s.b[0] * xi + z1;
+                    z1 = s.b[1] * xi - s.a[0] * y + z2;
+                    z2 = s.b[2] * xi - s.a[1] * y;
+                    *e = y;
+                }
+            }
+        };
+        pass(&mut ext);
+        ext.reverse();
+        pass(&mut ext);
+        ext.reverse();
+        ext[pl..pl + n].to_vec()
+    }
+
     #[test]
     fn side_by_side_filtering_equals_one_channel_at_a_time() {
         // 13 channels: a group of 8, one of 4 and one alone, with and without end padding; order 5
@@ -1131,10 +1122,15 @@ mod tests {
                             .collect()
                     })
                     .collect();
-                let mut one = chans.clone();
-                for x in &mut one {
+                let one: Vec<Vec<f64>> = chans
+                    .iter()
+                    .map(|x| reference_filtfilt(&f, x, pl, pr))
+                    .collect();
+                let mut alone = chans.clone();
+                for x in &mut alone {
                     f.apply(x, pl, pr);
                 }
+                assert_eq!(one, alone, "order {order}, pads {pl} {pr}");
                 let mut many = chans.clone();
                 let mut refs: Vec<&mut [f64]> = many.iter_mut().map(|v| v.as_mut_slice()).collect();
                 f.apply_many(&mut refs, pl, pr);

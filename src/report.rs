@@ -351,8 +351,8 @@ pub fn markdown(o: &Outcome, command: &str, plots: &[String]) -> String {
     );
 
     let _ = writeln!(m, "## Data, filter and derivative estimator\n");
-    let _ = writeln!(m, "| file | role | rows (used) | duration | sampling dt median / min / max | resampled | filter | q̇ | q̈ |");
-    let _ = writeln!(m, "|---|---|---|---|---|---|---|---|---|");
+    let _ = writeln!(m, "| file | role | rows (used) | duration | sampling dt median / min / max | resampled | filter | q̇ | q̈ | regression row every |");
+    let _ = writeln!(m, "|---|---|---|---|---|---|---|---|---|---|");
     let files = o
         .train
         .iter()
@@ -363,7 +363,7 @@ pub fn markdown(o: &Outcome, command: &str, plots: &[String]) -> String {
         let s = &d.sampling;
         let _ = writeln!(
             m,
-            "| `{}` | {} | {} ({}) | {:.2} s | {:.3} / {:.3} / {:.3} ms | {} | {} | {} | {} |",
+            "| `{}` | {} | {} ({}) | {:.2} s | {:.3} / {:.3} / {:.3} ms | {} | {} | {} | {} | {} |",
             f.file,
             role,
             f.rows,
@@ -379,7 +379,12 @@ pub fn markdown(o: &Outcome, command: &str, plots: &[String]) -> String {
             },
             d.filter,
             d.dq_source,
-            d.ddq_source
+            d.ddq_source,
+            if role == "training" {
+                format!("{} samples", f.regression_row_every)
+            } else {
+                "—".to_string()
+            }
         );
     }
     if !o.cutoff_scan.is_empty() {
@@ -402,8 +407,7 @@ pub fn markdown(o: &Outcome, command: &str, plots: &[String]) -> String {
     }
     let _ = writeln!(
         m,
-        "\nThe same zero-phase filter was applied to the measured torque and to every regressor column (parallel filtering) to build the regression, whose rows are then kept every {} grid sample(s), at least {}× the cut-off (the filtered columns carry nothing above a few cut-offs); errors are computed against the unfiltered torque at every one of the file's own samples. Filter edges are dropped.",
-        o.train.first().map_or(1, |f| f.regression_row_every),
+        "\nThe same zero-phase filter was applied to the measured torque and to every regressor column (parallel filtering) to build the regression, whose rows are then kept at {}× the cut-off or more (the table's last column: the filtered columns carry nothing above a few cut-offs); errors are computed against the unfiltered torque at every one of the file's own samples. Filter edges are dropped.",
         crate::identify::KEEP_RATE_PER_CUTOFF
     );
     let _ = writeln!(m, "\n## Plots\n");

@@ -327,28 +327,10 @@ pub fn solve_x(
     subset: &[usize],
 ) -> Result<(Vec<f64>, f64), RankDeficient> {
     let s = subset.len();
-    let rows: usize = factors
-        .iter()
-        .map(|(r, _)| r.nrows())
-        .sum::<usize>()
-        .max(s + 1);
     let c = s + 1;
-    // Column-major stack.
-    let mut m = vec![0.0; rows * c];
-    let mut off = 0;
-    for (r, w) in factors {
-        let t = r.ncols() - 1;
-        for i in 0..r.nrows() {
-            for (k, &col) in subset.iter().enumerate() {
-                m[k * rows + off + i] = w * r[(i, col)];
-            }
-            m[s * rows + off + i] = w * r[(i, t)];
-        }
-        off += r.nrows();
-    }
-    let norms: Vec<f64> = (0..s)
-        .map(|k| dot(&m[k * rows..(k + 1) * rows], &m[k * rows..(k + 1) * rows]).sqrt())
-        .collect();
+    let mut stacked = stack(factors, subset);
+    let rows = stacked.nrows();
+    let norms: Vec<f64> = (0..s).map(|k| stacked.column(k).norm()).collect();
     let maxn = norms.iter().copied().fold(0.0, f64::max);
     let degenerate = norms
         .iter()
@@ -362,6 +344,8 @@ pub fn solve_x(
     if degenerate {
         return Err(fallback());
     }
+    // nalgebra's storage is column-major: the QR below works on it in place.
+    let m = stacked.as_mut_slice();
     for k in 0..s {
         let inv = 1.0 / norms[k];
         for v in &mut m[k * rows..(k + 1) * rows] {
@@ -369,7 +353,7 @@ pub fn solve_x(
         }
     }
     let mut r = vec![0.0; c * c];
-    householder_update(&mut r, c, &mut m, rows, rows);
+    householder_update(&mut r, c, m, rows, rows);
     if (0..s).any(|k| r[k * c + k].abs() < RANK_TOL) {
         let e = fallback();
         if !e.dependent.is_empty() {

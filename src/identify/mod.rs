@@ -400,61 +400,58 @@ fn accumulate_fit(
         .collect();
     let active: Vec<Vec<usize>> = (0..n).map(|j| layout.active(j)).collect();
     let tau = grid_tau(p);
-    let used = |k: usize| -> bool { (k - p.keep.0) % decim == 0 };
     let mut rows = Rows::new(base, layout);
     let mut buf = vec![0.0; n * nc];
     let (mut q, mut dq, mut ddq) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-    {
-        let (k0, k1) = p.keep;
-        let mut a = k0;
-        while a < k1 {
-            let b = (a + core).min(k1);
-            let lo = a.saturating_sub(reach);
-            let hi = (b + reach).min(g.n);
-            let w = hi - lo;
-            // Per joint, its active columns then τ, column-major: cols[j][l * w + (k - lo)].
-            let mut cols: Vec<Vec<f64>> = active
-                .iter()
-                .map(|a| vec![0.0; (a.len() + 1) * w])
-                .collect();
-            for k in lo..hi {
-                for j in 0..n {
-                    q[j] = p.est.q[j][k];
-                    dq[j] = p.est.dq[j][k];
-                    ddq[j] = p.est.ddq[j][k];
-                }
-                rows.fill(&q, &dq, &ddq, &mut buf);
-                for j in 0..n {
-                    for (l, &c) in active[j].iter().enumerate() {
-                        cols[j][l * w + (k - lo)] = buf[j * nc + c];
-                    }
-                    cols[j][active[j].len() * w + (k - lo)] = tau[j][k];
-                }
+    let (k0, k1) = p.keep;
+    let mut a = k0;
+    while a < k1 {
+        let b = (a + core).min(k1);
+        let lo = a.saturating_sub(reach);
+        let hi = (b + reach).min(g.n);
+        let w = hi - lo;
+        // Per joint, its active columns then τ, column-major: cols[j][l * w + (k - lo)].
+        let mut cols: Vec<Vec<f64>> = active
+            .iter()
+            .map(|a| vec![0.0; (a.len() + 1) * w])
+            .collect();
+        for k in lo..hi {
+            for j in 0..n {
+                q[j] = p.est.q[j][k];
+                dq[j] = p.est.dq[j][k];
+                ddq[j] = p.est.ddq[j][k];
             }
-            let keep: Vec<(usize, usize)> = (a..b)
-                .filter(|&k| used(k))
-                .map(|k| (k, p.block_of(k, nblocks)))
-                .collect();
-            cols.par_iter_mut()
-                .zip(accs.par_iter_mut())
-                .zip(active.par_iter())
-                .for_each(|((cj, acc), act)| {
-                    let mut chans: Vec<&mut [f64]> = cj
-                        .chunks_mut(w)
-                        .filter(|ch| ch.iter().any(|v| *v != 0.0))
-                        .collect();
-                    filt.apply_many(&mut chans, lo == 0, hi == g.n);
-                    let mut row = vec![0.0; nc + 1];
-                    for &(k, blk) in &keep {
-                        for (l, &c) in act.iter().enumerate() {
-                            row[c] = cj[l * w + (k - lo)];
-                        }
-                        row[nc] = cj[act.len() * w + (k - lo)];
-                        acc[blk].push(&row);
-                    }
-                });
-            a = b;
+            rows.fill(&q, &dq, &ddq, &mut buf);
+            for j in 0..n {
+                for (l, &c) in active[j].iter().enumerate() {
+                    cols[j][l * w + (k - lo)] = buf[j * nc + c];
+                }
+                cols[j][active[j].len() * w + (k - lo)] = tau[j][k];
+            }
         }
+        let keep: Vec<(usize, usize)> = (a..b)
+            .filter(|&k| (k - k0) % decim == 0)
+            .map(|k| (k, p.block_of(k, nblocks)))
+            .collect();
+        cols.par_iter_mut()
+            .zip(accs.par_iter_mut())
+            .zip(active.par_iter())
+            .for_each(|((cj, acc), act)| {
+                let mut chans: Vec<&mut [f64]> = cj
+                    .chunks_mut(w)
+                    .filter(|ch| ch.iter().any(|v| *v != 0.0))
+                    .collect();
+                filt.apply_many(&mut chans, lo == 0, hi == g.n);
+                let mut row = vec![0.0; nc + 1];
+                for &(k, blk) in &keep {
+                    for (l, &c) in act.iter().enumerate() {
+                        row[c] = cj[l * w + (k - lo)];
+                    }
+                    row[nc] = cj[act.len() * w + (k - lo)];
+                    acc[blk].push(&row);
+                }
+            });
+        a = b;
     }
     finish_transposed(accs, nblocks)
 }
@@ -493,20 +490,11 @@ fn for_raw_samples(
     stride: usize,
     f: impl FnMut(usize, &[f64], &[f64], &[f64], &[f64]),
 ) {
-    for_raw_range_by(p, p.raw_keep.0, p.raw_keep.1, stride, f)
+    for_raw_range(p, p.raw_keep.0, p.raw_keep.1, stride, f)
 }
 
 /// [`for_raw_samples`] over raw samples `lo..hi` (within the used range).
 fn for_raw_range(
-    p: &Prepared,
-    lo: usize,
-    hi: usize,
-    f: impl FnMut(usize, &[f64], &[f64], &[f64], &[f64]),
-) {
-    for_raw_range_by(p, lo, hi, 1, f)
-}
-
-fn for_raw_range_by(
     p: &Prepared,
     lo: usize,
     hi: usize,
@@ -530,10 +518,11 @@ fn for_raw_range_by(
 }
 
 /// A model judged against the measured torque: its columns, its parameters fitted on all
-/// training blocks and, for the held-out error, those fitted without each block.
+/// training blocks (for the error) and those fitted without each block (for the held-out
+/// error); either may be left out.
 pub struct Judged<'a> {
     pub subset: &'a [usize],
-    pub x: &'a [f64],
+    pub x: Option<&'a [f64]>,
     pub loo: Option<&'a [Vec<f64>]>,
 }
 
@@ -606,8 +595,8 @@ pub fn raw_sums(
         let g = p.est.grid;
         let (lo, hi) = p.raw_keep;
         // Per joint, the model's parameters spread over the joint's active columns (zero for
-        // columns outside the model): `[model][1 + block][joint][active column]`, so each
-        // prediction is one contiguous dot product.
+        // columns outside the model): `[model][full?, then block][joint][active column]`, so
+        // each prediction is one contiguous dot product.
         let spread = |subset: &[usize], x: &[f64], j: usize| -> Vec<f64> {
             active[j]
                 .iter()
@@ -617,7 +606,10 @@ pub fn raw_sums(
         let coef: Vec<Vec<Vec<Vec<f64>>>> = models
             .iter()
             .map(|m| {
-                let mut v = vec![(0..n).map(|j| spread(m.subset, m.x, j)).collect()];
+                let mut v = Vec::new();
+                if let Some(x) = m.x {
+                    v.push((0..n).map(|j| spread(m.subset, x, j)).collect());
+                }
                 if let Some(loo) = m.loo {
                     for b in 0..nblocks {
                         v.push(
@@ -639,7 +631,7 @@ pub fn raw_sums(
                 let mut rows = Rows::new(base, layout);
                 let mut buf = vec![0.0; n * nc];
                 let mut row: Vec<Vec<f64>> = active.iter().map(|a| vec![0.0; a.len()]).collect();
-                for_raw_range(p, a, (a + CHUNK).min(hi), |k, q, dq, ddq, tau| {
+                for_raw_range(p, a, (a + CHUNK).min(hi), 1, |k, q, dq, ddq, tau| {
                     let kg = (((p.traj.t[k] - g.t0) / g.dt).round().max(0.0) as usize).min(g.n - 1);
                     let blk = p.block_of(kg, nblocks);
                     rows.fill(q, dq, ddq, &mut buf);
@@ -650,11 +642,14 @@ pub fn raw_sums(
                         sums.tss[j] += tau[j] * tau[j];
                     }
                     for (m, model) in models.iter().enumerate() {
+                        let full = usize::from(model.x.is_some());
                         for j in 0..n {
-                            let e = tau[j] - ls::dot(&row[j], &coef[m][0][j]);
-                            sums.sse[m][j] += e * e;
+                            if full == 1 {
+                                let e = tau[j] - ls::dot(&row[j], &coef[m][0][j]);
+                                sums.sse[m][j] += e * e;
+                            }
                             if model.loo.is_some() {
-                                let e = tau[j] - ls::dot(&row[j], &coef[m][1 + blk][j]);
+                                let e = tau[j] - ls::dot(&row[j], &coef[m][full + blk][j]);
                                 sums.heldout[m][j] += e * e;
                             }
                         }
@@ -773,11 +768,10 @@ impl Problem {
         subset: &[usize],
         w: &[f64],
     ) -> Result<f64, RankError> {
-        let loo = self.loo_fits_strict(subset, w)?;
-        let x = vec![0.0; subset.len()];
+        let loo = self.loo_fits(subset, w)?;
         let m = [Judged {
             subset,
-            x: &x,
+            x: None,
             loo: Some(&loo),
         }];
         let sums = raw_sums(base, &self.layout, train, Some(self.raw_blocks()), &m);
@@ -790,7 +784,7 @@ impl Problem {
     }
 
     /// Parameters of every leave-one-block-out fit (an error if one is rank-deficient).
-    pub fn loo_fits_strict(&self, subset: &[usize], w: &[f64]) -> Result<Vec<Vec<f64>>, RankError> {
+    pub fn loo_fits(&self, subset: &[usize], w: &[f64]) -> Result<Vec<Vec<f64>>, RankError> {
         (0..self.blocks())
             .map(|b| {
                 let f: Vec<(&DMatrix<f64>, f64)> =
@@ -800,6 +794,11 @@ impl Problem {
                     .map_err(|e| self.rank_error(&e.dependent))
             })
             .collect()
+    }
+
+    /// The all-blocks factors weighted by `w`, as [`ls::solve`] takes them.
+    fn total_factors(&self, w: &[f64]) -> Vec<(&DMatrix<f64>, f64)> {
+        self.total.iter().zip(w).map(|(a, &w)| (a.r(), w)).collect()
     }
 
     pub fn blocks(&self) -> usize {
@@ -828,9 +827,7 @@ impl Problem {
 
     /// Weighted fit over the full training set.
     pub fn fit(&self, subset: &[usize], w: &[f64]) -> Result<ls::Fit, RankError> {
-        let f: Vec<(&DMatrix<f64>, f64)> =
-            self.total.iter().zip(w).map(|(a, &w)| (a.r(), w)).collect();
-        ls::solve(&f, subset).map_err(|e| self.rank_error(&e.dependent))
+        ls::solve(&self.total_factors(w), subset).map_err(|e| self.rank_error(&e.dependent))
     }
 
     /// Per-joint weights `1/σⱼ` from the residual of the model (OLS, then one WLS pass).
@@ -838,13 +835,8 @@ impl Problem {
         let n = self.layout.dof;
         let mut w = vec![1.0; n];
         for _ in 0..2 {
-            let f: Vec<(&DMatrix<f64>, f64)> = self
-                .total
-                .iter()
-                .zip(&w)
-                .map(|(a, &w)| (a.r(), w))
-                .collect();
-            let (x, _) = ls::solve_x(&f, subset).map_err(|e| self.rank_error(&e.dependent))?;
+            let (x, _) = ls::solve_x(&self.total_factors(&w), subset)
+                .map_err(|e| self.rank_error(&e.dependent))?;
             w = (0..n)
                 .map(|j| {
                     let a = &self.total[j];
@@ -864,29 +856,16 @@ impl Problem {
     /// Held-out weighted SSE `[block][joint]` of leave-one-block-out refits.
     pub fn cv_sse(&self, subset: &[usize], w: &[f64]) -> Result<Vec<Vec<f64>>, RankError> {
         let n = self.layout.dof;
-        let mut out = Vec::with_capacity(self.blocks());
-        for b in 0..self.blocks() {
-            let f: Vec<(&DMatrix<f64>, f64)> =
-                self.loo[b].iter().zip(w).map(|(r, &w)| (r, w)).collect();
-            let (x, _) = ls::solve_x(&f, subset).map_err(|e| self.rank_error(&e.dependent))?;
-            out.push(
+        let fits = self.loo_fits(subset, w)?;
+        Ok(fits
+            .iter()
+            .zip(&self.blocks)
+            .map(|(x, blk)| {
                 (0..n)
-                    .map(|j| w[j] * w[j] * self.blocks[b][j].sse(subset, &x))
-                    .collect(),
-            );
-        }
-        Ok(out)
-    }
-
-    /// Parameter vectors of the leave-one-block-out fits (for the jackknife).
-    fn loo_fits(&self, subset: &[usize], w: &[f64]) -> Vec<Vec<f64>> {
-        (0..self.blocks())
-            .filter_map(|b| {
-                let f: Vec<(&DMatrix<f64>, f64)> =
-                    self.loo[b].iter().zip(w).map(|(r, &w)| (r, w)).collect();
-                ls::solve_x(&f, subset).ok().map(|(x, _)| x)
+                    .map(|j| w[j] * w[j] * blk[j].sse(subset, x))
+                    .collect()
             })
-            .collect()
+            .collect())
     }
 
     /// Partial correlation, on the term's joint, of the torque residual with the term's column,
@@ -1054,7 +1033,10 @@ pub fn run(
     let (fc, scan) = choose_cutoff(&base, table.as_ref(), &train, cfg, &mut cache)?;
     // Free the scan's estimates before the final ones are made (peak memory of one copy).
     drop(cache);
-    let preps = PrepCache::default().get_all(&train, cfg, fc)?;
+    let preps: Vec<Prepared> = train
+        .iter()
+        .map(|t| Prepared::with_cutoff(t.clone(), cfg, fc, None))
+        .collect::<Result<_, _>>()?;
     let val = match validate {
         Some(v) => Some(Prepared::with_cutoff(
             Arc::new(v),
@@ -1261,16 +1243,17 @@ fn make_layout(
         EffectsSpec::Fixed(t) => (t.clone(), Vec::new()),
     };
     let names = base.names();
-    let merged: Vec<(Term, Vec<String>)> = match table {
-        Some(tab) => {
-            let states = base::random_states(tab, 40, 11);
+    // Random states for the structural checks (merged effects, zero base columns per joint).
+    let states = table.map(|tab| base::random_states(tab, 40, 11));
+    let merged: Vec<(Term, Vec<String>)> = match &states {
+        Some(states) => {
             let mut s = base.scratch();
             let all: Vec<Term> = declared.iter().chain(&searched).copied().collect();
             effects::structural_merges(
                 &all,
                 base.nb(),
                 n,
-                &states,
+                states,
                 |q, dq, ddq, out| base.eval(&mut s, q, dq, ddq, out),
                 &names,
             )
@@ -1283,8 +1266,8 @@ fn make_layout(
     let mut terms: Vec<Term> = declared.iter().chain(&searched).copied().collect();
     terms.sort();
     terms.dedup();
-    let base_active = match table {
-        Some(tab) => structural_base_columns(base, tab),
+    let base_active = match &states {
+        Some(states) => structural_base_columns(base, states),
         None => vec![(0..base.nb()).collect(); n],
     };
     let layout = Layout {
@@ -1299,16 +1282,16 @@ fn make_layout(
     (layout, declared, searched, merged)
 }
 
-/// Per joint, the base columns that are non-zero at some of 40 random states (a structurally
-/// zero entry is exactly zero in the generated kernels and at rounding level, ≤ 1e-10 of the
-/// column's largest entry, in the numeric base map).
-fn structural_base_columns(base: &BaseModel, table: &crate::dh::DhTable) -> Vec<Vec<usize>> {
+/// Per joint, the base columns that are non-zero at some of the random `states` (a
+/// structurally zero entry is exactly zero in the generated kernels and at rounding level,
+/// ≤ 1e-10 of the column's largest entry, in the numeric base map).
+fn structural_base_columns(base: &BaseModel, states: &[[Vec<f64>; 3]]) -> Vec<Vec<usize>> {
     let (n, nb) = (base.dof(), base.nb());
     let mut peak = vec![0.0f64; n * nb];
     let mut s = base.scratch();
     let mut yb = vec![0.0; n * nb];
-    for [q, dq, ddq] in base::random_states(table, 40, 23) {
-        base.eval(&mut s, &q, &dq, &ddq, &mut yb);
+    for [q, dq, ddq] in states {
+        base.eval(&mut s, q, dq, ddq, &mut yb);
         for (p, y) in peak.iter_mut().zip(&yb) {
             *p = p.max(y.abs());
         }
@@ -1380,7 +1363,7 @@ pub fn run_prepared(
             let w = problem.weights(&subset).map_err(|e| with_hint(e, train))?;
             let fit = problem.fit(&subset, &w).map_err(|e| with_hint(e, train))?;
             let loo = problem
-                .loo_fits_strict(&subset, &w)
+                .loo_fits(&subset, &w)
                 .map_err(|e| with_hint(e, train))?;
             Ok(Fitted {
                 subset,
@@ -1394,7 +1377,7 @@ pub fn run_prepared(
         .iter()
         .map(|f| Judged {
             subset: &f.subset,
-            x: &f.fit.x,
+            x: Some(&f.fit.x),
             loo: Some(&f.loo),
         })
         .collect();
@@ -1436,8 +1419,8 @@ pub fn run_prepared(
         });
     }
 
-    // Jackknife standard deviations over the blocks.
-    let loo = problem.loo_fits(&after.subset, &w);
+    // Jackknife standard deviations over the blocks (the final model's leave-out fits).
+    let loo = &fitted[1].loo;
     let nb_ = loo.len() as f64;
     let std: Vec<f64> = (0..after.x.len())
         .map(|k| {
