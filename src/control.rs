@@ -95,6 +95,20 @@ impl RhftcGains {
     }
 }
 
+/// How a model-based controller's steps went.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Usage {
+    /// Fraction of control steps that used the PD fallback.
+    pub fallback: f64,
+    /// Fraction of control steps where `M̂(q)` had to be diagonally loaded.
+    pub loaded: f64,
+}
+
+/// A controller built on the model (`τ = M̂ v + ĥ`): [`Rhftc`] and [`Ctc`].
+pub trait ModelBased: Controller {
+    fn usage(&self) -> Usage;
+}
+
 /// Model-based part shared by [`Rhftc`] and [`Ctc`]: `τ = M̂ v + ĥ`, or the fallback PD.
 struct ModelLaw<'a> {
     model: &'a dyn Model,
@@ -113,9 +127,13 @@ struct ModelLaw<'a> {
 pub const LOADING_FLOOR: f64 = 0.05;
 
 impl<'a> ModelLaw<'a> {
-    /// `count` as a fraction of the control steps so far (0 before the first step).
-    fn fraction(&self, count: usize) -> f64 {
-        count as f64 / self.steps.max(1) as f64
+    /// How often the fallback and the loading were needed so far (0 before the first step).
+    fn usage(&self) -> Usage {
+        let fraction = |count: usize| count as f64 / self.steps.max(1) as f64;
+        Usage {
+            fallback: fraction(self.fallback_steps),
+            loaded: fraction(self.loaded_steps),
+        }
     }
 
     /// Whether `M̂ + shift·I` is positive definite.
@@ -209,15 +227,11 @@ impl<'a> Rhftc<'a> {
             sign: SignConvention::Stable,
         }
     }
+}
 
-    /// Fraction of control steps that used the PD fallback.
-    pub fn fallback_fraction(&self) -> f64 {
-        self.law.fraction(self.law.fallback_steps)
-    }
-
-    /// Fraction of control steps where `M̂(q)` had to be diagonally loaded.
-    pub fn loaded_fraction(&self) -> f64 {
-        self.law.fraction(self.law.loaded_steps)
+impl ModelBased for Rhftc<'_> {
+    fn usage(&self) -> Usage {
+        self.law.usage()
     }
 }
 
@@ -266,15 +280,11 @@ impl<'a> Ctc<'a> {
             kd,
         }
     }
+}
 
-    /// Fraction of control steps that used the PD fallback.
-    pub fn fallback_fraction(&self) -> f64 {
-        self.law.fraction(self.law.fallback_steps)
-    }
-
-    /// Fraction of control steps where `M̂(q)` had to be diagonally loaded.
-    pub fn loaded_fraction(&self) -> f64 {
-        self.law.fraction(self.law.loaded_steps)
+impl ModelBased for Ctc<'_> {
+    fn usage(&self) -> Usage {
+        self.law.usage()
     }
 }
 

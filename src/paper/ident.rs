@@ -25,6 +25,19 @@ pub struct Signals<'a> {
     pub tau: &'a [f64],
 }
 
+impl Signals<'_> {
+    /// The base regressor at sample `k` into `yb` (`dof × nb`, row-major).
+    fn base_regressor(&self, model: &dyn Model, k: usize, yb: &mut [f64]) {
+        let span = k * self.dof..(k + 1) * self.dof;
+        model.base_regressor(
+            &self.q[span.clone()],
+            &self.dq[span.clone()],
+            &self.ddq[span],
+            yb,
+        );
+    }
+}
+
 fn solve(a: DMatrix<f64>, y: DVector<f64>) -> Result<Vec<f64>, IdentError> {
     let (rows, cols) = a.shape();
     if rows < cols {
@@ -55,13 +68,7 @@ pub fn step_ls(
     let mut a = DMatrix::<f64>::zeros(idx.len(), cols.len());
     let mut y = DVector::<f64>::zeros(idx.len());
     for (r, &k) in idx.iter().enumerate() {
-        let span = k * dof..(k + 1) * dof;
-        model.base_regressor(
-            &s.q[span.clone()],
-            &s.dq[span.clone()],
-            &s.ddq[span],
-            &mut yb,
-        );
+        s.base_regressor(model, k, &mut yb);
         let line = &yb[row * nb..(row + 1) * nb];
         let mut rhs = s.tau[k * dof + row];
         for (c, &v) in line.iter().enumerate() {
@@ -82,13 +89,7 @@ pub fn full_ls(model: &dyn Model, s: &Signals, idx: &[usize]) -> Result<Vec<f64>
     let mut a = DMatrix::<f64>::zeros(idx.len() * dof, nb);
     let mut y = DVector::<f64>::zeros(idx.len() * dof);
     for (r, &k) in idx.iter().enumerate() {
-        let span = k * dof..(k + 1) * dof;
-        model.base_regressor(
-            &s.q[span.clone()],
-            &s.dq[span.clone()],
-            &s.ddq[span],
-            &mut yb,
-        );
+        s.base_regressor(model, k, &mut yb);
         for j in 0..dof {
             for c in 0..nb {
                 a[(r * dof + j, c)] = yb[j * nb + c];

@@ -26,7 +26,7 @@ use std::time::Instant;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use serde::Serialize;
 
-use crate::control::{Ctc, Pd, Rhftc, RhftcGains};
+use crate::control::{Ctc, ModelBased, Pd, Rhftc, RhftcGains, Usage};
 use crate::derivative::{central_uniform, Butterworth};
 use crate::excitation::{
     minimize, FourierProblem, GaConfig, Limits, LogisticDesign, LogisticProblem, Margins, StepPlan,
@@ -377,25 +377,19 @@ pub enum Law {
     Ctc,
 }
 
-/// How the controller ran during one experiment.
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct Usage {
-    fallback: f64,
-    loaded: f64,
-}
-
-impl Usage {
-    fn label(&self, law: Law) -> String {
-        let name = match law {
+impl Law {
+    /// The controller as it ran during one experiment, e.g. `RHFTC + PD 12 %`.
+    fn label(self, usage: &Usage) -> String {
+        let name = match self {
             Law::Rhftc => "RHFTC",
             Law::Ctc => "CTC",
         };
-        if self.fallback >= 0.999 {
+        if usage.fallback >= 0.999 {
             "PD (θ̂ has no inertia)".into()
-        } else if self.fallback > 0.0 {
-            format!("{name} + PD {:.0} %", 100.0 * self.fallback)
-        } else if self.loaded > 0.0 {
-            format!("{name}, M̂ loaded {:.0} %", 100.0 * self.loaded)
+        } else if usage.fallback > 0.0 {
+            format!("{name} + PD {:.0} %", 100.0 * usage.fallback)
+        } else if usage.loaded > 0.0 {
+            format!("{name}, M̂ loaded {:.0} %", 100.0 * usage.loaded)
         } else {
             name.into()
         }
@@ -420,35 +414,32 @@ fn run_step(
         log_every: (cfg.ts / cfg.dt).round().max(1.0) as usize,
         divergence_limit: 100.0,
     };
+    fn run<C: ModelBased>(
+        plant: &Plant,
+        mut c: C,
+        traj: &Logistic,
+        sim: &SimConfig,
+    ) -> Result<(SimLog, Usage), SimError> {
+        let log = simulate(plant, &mut c, traj, sim)?;
+        Ok((log, c.usage()))
+    }
     match law {
-        Law::Rhftc => {
-            let mut c = Rhftc::new(model, theta_hat.to_vec(), cfg.rhftc.clone(), fallback);
-            let log = simulate(plant, &mut c, traj, &sim)?;
-            Ok((
-                log,
-                Usage {
-                    fallback: c.fallback_fraction(),
-                    loaded: c.loaded_fraction(),
-                },
-            ))
-        }
+        Law::Rhftc => run(
+            plant,
+            Rhftc::new(model, theta_hat.to_vec(), cfg.rhftc.clone(), fallback),
+            traj,
+            &sim,
+        ),
         Law::Ctc => {
             let g = &cfg.rhftc;
-            let mut c = Ctc::new(
+            let c = Ctc::new(
                 model,
                 theta_hat.to_vec(),
                 g.kp.clone(),
                 g.kd.clone(),
                 fallback,
             );
-            let log = simulate(plant, &mut c, traj, &sim)?;
-            Ok((
-                log,
-                Usage {
-                    fallback: c.fallback_fraction(),
-                    loaded: c.loaded_fraction(),
-                },
-            ))
+            run(plant, c, traj, &sim)
         }
     }
 }
@@ -521,7 +512,7 @@ pub fn iterate(
             records.push(IterRecord {
                 iteration: it,
                 step: s + 1,
-                controller: usage.label(law),
+                controller: law.label(&usage),
                 fallback_fraction: usage.fallback,
                 loaded_fraction: usage.loaded,
                 theta_hat: theta.clone(),
