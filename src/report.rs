@@ -173,6 +173,15 @@ fn prediction_csv(o: &Outcome) -> Option<String> {
     Some(s)
 }
 
+/// What a model's prediction is computed from (see [`crate::identify::Smoothing`]).
+fn prediction_name(s: &crate::identify::Smoothing) -> &'static str {
+    if s.filtered_prediction {
+        "filtered rows"
+    } else {
+        "states"
+    }
+}
+
 fn pct(v: f64) -> String {
     if v.is_finite() {
         format!("{:.2} %", 100.0 * v)
@@ -351,8 +360,8 @@ pub fn markdown(o: &Outcome, command: &str, plots: &[String]) -> String {
     );
 
     let _ = writeln!(m, "## Data, filter and derivative estimator\n");
-    let _ = writeln!(m, "| file | role | rows (used) | duration | sampling dt median / min / max | resampled | filter | q̇ | q̈ | regression row every |");
-    let _ = writeln!(m, "|---|---|---|---|---|---|---|---|---|---|");
+    let _ = writeln!(m, "| file | role | rows (used) | duration | sampling dt median / min / max | resampled | filter | q̇ | q̈ | regression filter | regression row every |");
+    let _ = writeln!(m, "|---|---|---|---|---|---|---|---|---|---|---|");
     let files = o
         .train
         .iter()
@@ -363,7 +372,7 @@ pub fn markdown(o: &Outcome, command: &str, plots: &[String]) -> String {
         let s = &d.sampling;
         let _ = writeln!(
             m,
-            "| `{}` | {} | {} ({}) | {:.2} s | {:.3} / {:.3} / {:.3} ms | {} | {} | {} | {} | {} |",
+            "| `{}` | {} | {} ({}) | {:.2} s | {:.3} / {:.3} / {:.3} ms | {} | {} | {} | {} | {} | {} |",
             f.file,
             role,
             f.rows,
@@ -380,6 +389,7 @@ pub fn markdown(o: &Outcome, command: &str, plots: &[String]) -> String {
             d.filter,
             d.dq_source,
             d.ddq_source,
+            f.regression_filter,
             if role == "training" {
                 format!("{} samples", f.regression_row_every)
             } else {
@@ -398,17 +408,34 @@ pub fn markdown(o: &Outcome, command: &str, plots: &[String]) -> String {
         } else {
             String::new()
         };
-        let _ = writeln!(m, "\nCut-off chosen automatically: smallest held-out error against the measured torque over the scan (rigid body + all candidate effects{scope}):\n");
-        let _ = writeln!(m, "| cut-off (Hz) | held-out error |");
-        let _ = writeln!(m, "|---|---|");
+        let _ = writeln!(m, "\nCut-off, regression filter and prediction chosen automatically: smallest held-out error against the measured torque over the scan (rigid body + all candidate effects{scope}):\n");
+        let _ = writeln!(
+            m,
+            "| cut-off (Hz) | regression filter | prediction | held-out error |"
+        );
+        let _ = writeln!(m, "|---|---|---|---|");
         for c in &o.cutoff_scan {
-            let _ = writeln!(m, "| {:.2} | {} |", c.cutoff_hz, pct(c.heldout_error));
+            let _ = writeln!(
+                m,
+                "| {:.2} | {}·fc | {} | {} |",
+                c.cutoff_hz,
+                c.smoothing.regression_ratio,
+                prediction_name(&c.smoothing),
+                pct(c.heldout_error)
+            );
         }
     }
+    let sm = o.train.first().map(|f| f.smoothing).unwrap_or_default();
     let _ = writeln!(
         m,
-        "\nThe same zero-phase filter was applied to the measured torque and to every regressor column (parallel filtering) to build the regression, whose rows are then kept at {}× the cut-off or more (the table's last column: the filtered columns carry nothing above a few cut-offs); errors are computed against the unfiltered torque at every one of the file's own samples. Filter edges are dropped.",
-        crate::identify::KEEP_RATE_PER_CUTOFF
+        "\nThe regression filter (zero-phase, at {}× the derivative filter's cut-off) was applied to the measured torque and to every regressor column (parallel filtering) to build the regression, whose rows are then kept at {}× its cut-off or more (the table's last column: the filtered columns carry nothing above a few cut-offs). Models predict the torque from {}; errors are computed against the unfiltered torque at every one of the file's own samples. Filter edges are dropped.",
+        sm.regression_ratio,
+        crate::identify::KEEP_RATE_PER_CUTOFF,
+        if sm.filtered_prediction {
+            "the parallel-filtered rows, the very rows the parameters were fitted to (right when the torque is smooth and the motion kinks, e.g. an arm driven by smooth torques whose friction flips at velocity reversals)"
+        } else {
+            "the rows of the estimated states (right when the motion is smooth and the torque jumps, e.g. Coulomb friction under a stiff position loop)"
+        }
     );
     let _ = writeln!(m, "\n## Plots\n");
     for p in plots {

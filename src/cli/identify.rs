@@ -38,6 +38,12 @@ pub struct Args {
     /// Low-pass cut-off in Hz, or `auto` (held-out error scan over spectrum-based candidates).
     #[arg(long, default_value = "auto")]
     pub cutoff: String,
+    /// Regression filter and prediction: `auto` (chosen with the cut-off by held-out error) or
+    /// RATIO,PREDICTION: the regression (parallel) filter's cut-off over the derivative
+    /// filter's, and whether models predict from the estimated `states` or the `filtered` rows,
+    /// e.g. `0.5,filtered`.
+    #[arg(long, default_value = "auto")]
+    pub smoothing: String,
     /// Derivative estimator.
     #[arg(long, value_enum, default_value = "butterworth")]
     pub derivative: DerivativeArg,
@@ -67,9 +73,10 @@ fn command_line(args: &Args) -> String {
     }
     let _ = write!(
         c,
-        " --effects {} --cutoff {} --out {}",
+        " --effects {} --cutoff {} --smoothing {} --out {}",
         args.effects,
         args.cutoff,
+        args.smoothing,
         args.out.display()
     );
     if matches!(args.derivative, DerivativeArg::Savgol) {
@@ -100,7 +107,14 @@ pub fn run(args: &Args) -> Result<()> {
             }
         },
     };
+    let smoothing = match args.smoothing.trim() {
+        "auto" => None,
+        s => Some(
+            identify::Smoothing::parse(s).map_err(|e| InputError(format!("--smoothing: {e}")))?,
+        ),
+    };
     let cfg = Config {
+        smoothing,
         derivative: crate::derivative::Options {
             method: match args.derivative {
                 DerivativeArg::Butterworth => Method::Butterworth,
@@ -169,9 +183,9 @@ fn write_loo(dir: &Path, outs: &[Outcome], command: &str) -> Result<()> {
     let _ = writeln!(md, "Reproduce: `{command}`\n");
     let _ = writeln!(
         md,
-        "| held-out file | effects found | cut-off (Hz) | validation before | validation after |"
+        "| held-out file | effects found | cut-off (Hz) | regression filter, prediction | validation before | validation after |"
     );
-    let _ = writeln!(md, "|---|---|---|---|---|");
+    let _ = writeln!(md, "|---|---|---|---|---|---|");
     let mut rows = Vec::new();
     let mut reports = Vec::new();
     for o in outs {
@@ -186,14 +200,16 @@ fn write_loo(dir: &Path, outs: &[Outcome], command: &str) -> Result<()> {
             o.after.validation.as_ref().map_or(f64::NAN, |e| e.overall),
         );
         let fc = o.train.first().map_or(f64::NAN, |f| f.derivative.cutoff_hz);
+        let sm = o.train.first().map(|f| f.smoothing).unwrap_or_default();
         let _ = writeln!(
             md,
-            "| `{v}` | {} | {fc:.2} | {:.2} % | {:.2} % |",
+            "| `{v}` | {} | {fc:.2} | {} | {:.2} % | {:.2} % |",
             found.join(", "),
+            sm.label(),
             100.0 * b,
             100.0 * a
         );
-        rows.push(serde_json::json!({"heldout": v, "effects_found": found, "cutoff_hz": fc, "validation_before": o.before.validation, "validation_after": o.after.validation, "steps": o.steps}));
+        rows.push(serde_json::json!({"heldout": v, "effects_found": found, "cutoff_hz": fc, "smoothing": sm, "validation_before": o.before.validation, "validation_after": o.after.validation, "steps": o.steps}));
         let stem = Path::new(&v)
             .file_name()
             .map(|s| {

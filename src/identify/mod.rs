@@ -7,13 +7,14 @@
 //!    spectrum, q̇/q̈ come from central differences (a q̇ column in the file is used, filtered,
 //!    and differentiated for q̈). Files with both q̇ and q̈ are used as given.
 //! 2. **Regression** with *parallel filtering*: on each file's uniform grid the rows
-//!    `[Yb(q,q̇,q̈) | effect columns | τ]` are filtered column by column with the *same* zero-phase
-//!    filter (also τ), in overlapping chunks so memory does not grow with the log length, kept
-//!    at [`KEEP_RATE_PER_CUTOFF`] times the cut-off (Gautier's decimation: nothing above a few
-//!    cut-offs survives the filter) and folded into incremental QR factors
-//!    ([`ls::Accumulator`]) per joint and per time block; a joint's factor holds only the
-//!    columns that can be non-zero in its rows. Filter edges are dropped. Several files are
-//!    fitted together, each filtered on its own.
+//!    `[Yb(q,q̇,q̈) | effect columns | τ]` are filtered column by column with a zero-phase
+//!    *regression filter* (also τ) of the same kind as the derivative filter, at its cut-off or
+//!    half of it ([`Smoothing`]), in overlapping chunks so memory does not grow with the log
+//!    length, kept at [`KEEP_RATE_PER_CUTOFF`] times the regression cut-off (Gautier's
+//!    decimation: nothing above a few cut-offs survives the filter) and folded into
+//!    incremental QR factors ([`ls::Accumulator`]) per joint and per time block; a joint's
+//!    factor holds only the columns that can be non-zero in its rows. Filter edges are
+//!    dropped. Several files are fitted together, each filtered on its own.
 //! 3. **Weighted least squares**: each joint's rows are weighted by the inverse of its residual
 //!    standard deviation (two passes), solved by QR over the stacked factors. Parameter standard
 //!    deviations come from a block jackknife over the time blocks (honest under the residual
@@ -21,14 +22,16 @@
 //!    consistency constraints are imposed (plain least squares); the condition number of the
 //!    weighted regressor is reported.
 //! 4. **Errors** are computed against the torque *as measured in the file* (unfiltered), at
-//!    every one of the file's own sample times, with the states interpolated from the estimate,
-//!    by predicting each reported model directly ([`raw_sums`]): relative RMS per joint
-//!    `‖τ̂ⱼ−τⱼ‖/‖τⱼ‖` and overall `‖τ̂−τ‖/‖τ‖`, for the declared (rigid) and the augmented
-//!    model, on training and validation data, and held out (each time block predicted by the
-//!    fit without it).
+//!    every one of the file's own sample times, by predicting each reported model directly
+//!    ([`raw_sums`]) from the rows of the estimated states or from the parallel-filtered rows
+//!    (whichever [`Smoothing`] the scan chose; rows interpolated between grid samples):
+//!    relative RMS per joint `‖τ̂ⱼ−τⱼ‖/‖τⱼ‖` and overall `‖τ̂−τ‖/‖τ‖`, for the declared
+//!    (rigid) and the augmented model, on training and validation data, and held out (each
+//!    time block predicted by the fit without it).
 //!
-//! The automatic cut-off ([`choose_cutoff`]) scans candidates by that held-out error; training
-//! sets over [`SCAN_SAMPLES`] samples are scanned on evenly spaced pieces ([`scan_pieces`]).
+//! The automatic cut-off ([`choose_cutoff`]) scans candidates and smoothings by that held-out
+//! error; training sets over [`SCAN_SAMPLES`] samples are scanned on evenly spaced pieces
+//! ([`scan_pieces`]).
 
 pub mod base;
 pub mod ls;
@@ -112,6 +115,8 @@ pub struct Config {
     pub rules: Rules,
     /// Number of time blocks over all training files (for held-out tests and the jackknife).
     pub blocks: usize,
+    /// Regression filter and prediction; `None` = chosen by the scan with the cut-off.
+    pub smoothing: Option<Smoothing>,
 }
 
 impl Default for Config {
@@ -122,6 +127,7 @@ impl Default for Config {
             effects: EffectsSpec::Auto,
             rules: Rules::default(),
             blocks: 20,
+            smoothing: None,
         }
     }
 }
@@ -136,22 +142,99 @@ pub struct Prepared {
     pub keep: (usize, usize),
     /// Raw samples used for errors and predictions.
     pub raw_keep: (usize, usize),
+    /// The regression filter: parallel filtering of the rows and τ (and of the predictions,
+    /// if `smoothing` says so), cut-off `rfilter_hz`.
+    pub rfilter: Filter,
+    pub rfilter_hz: f64,
+    pub smoothing: Smoothing,
+}
+
+/// How the regression rows are filtered and how a model predicts the measured torque; chosen
+/// with the cut-off by held-out error against the measured torque ([`choose_cutoff`]).
+///
+/// Which prediction is right depends on where the sharp features of the data live. Where the
+/// motion is smooth and the torque jumps (a stiff position loop, or inverse dynamics: Coulomb
+/// friction flips the torque at each velocity reversal), the rows of the estimated states
+/// predict the jump. Where the torque is smooth and the motion kinks (an arm driven by smooth
+/// torques: friction flips and the acceleration jumps instead), the low-passed q̈ cannot follow
+/// the kink while `sgn q̇` does, and only the rows filtered like the fit's — the very rows the
+/// parameters were fitted to — predict consistently. A lower regression cut-off (Gautier's
+/// decimation filter below the derivative filter) keeps the derivative filter's band for the
+/// states while smoothing the products of noisy states.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Smoothing {
+    /// Regression filter cut-off over the derivative filter's.
+    pub regression_ratio: f64,
+    /// Predictions from the parallel-filtered rows (`true`) or from the rows of the estimated
+    /// states (`false`).
+    pub filtered_prediction: bool,
+}
+
+impl Default for Smoothing {
+    fn default() -> Self {
+        Smoothing {
+            regression_ratio: 1.0,
+            filtered_prediction: false,
+        }
+    }
+}
+
+impl Smoothing {
+    /// Regression filter ratios the scan tries.
+    pub const RATIOS: [f64; 2] = [1.0, 0.5];
+
+    /// Parses `RATIO,states` or `RATIO,filtered` (e.g. `0.5,filtered`), ratio in (0, 1].
+    pub fn parse(s: &str) -> Result<Self, String> {
+        let bad = || {
+            format!("`{s}` is not `auto` or RATIO,PREDICTION with RATIO in (0, 1] and PREDICTION `states` or `filtered` (e.g. `0.5,filtered`)")
+        };
+        let (r, p) = s.split_once(',').ok_or_else(bad)?;
+        let ratio: f64 = r.trim().parse().map_err(|_| bad())?;
+        if !(ratio > 0.0 && ratio <= 1.0) {
+            return Err(bad());
+        }
+        let filtered_prediction = match p.trim() {
+            "states" => false,
+            "filtered" => true,
+            _ => return Err(bad()),
+        };
+        Ok(Smoothing {
+            regression_ratio: ratio,
+            filtered_prediction,
+        })
+    }
+
+    /// Short label for reports, e.g. `regression filter at 0.5·fc, filtered prediction`.
+    pub fn label(&self) -> String {
+        format!(
+            "regression filter at {}·fc, {} prediction",
+            self.regression_ratio,
+            if self.filtered_prediction {
+                "filtered"
+            } else {
+                "state"
+            }
+        )
+    }
 }
 
 impl Prepared {
     /// Estimates derivatives of a loaded trajectory (which must have torques) with the options
     /// of `cfg` (cut-off automatic from the spectrum unless given).
     pub fn new(traj: Trajectory, cfg: &Config) -> Result<Self, IdentifyError> {
-        Self::with_cutoff(Arc::new(traj), cfg, cfg.derivative.cutoff_hz, None)
+        let s = Smoothing::default();
+        Self::with_cutoff(Arc::new(traj), cfg, cfg.derivative.cutoff_hz, s, None)
     }
 
-    /// As [`Prepared::new`] with the cut-off `fc` (`None` = automatic) and filter edges dropped
-    /// as for a cut-off of `edge_fc` (default `fc`; a common value keeps the samples used the
-    /// same when cut-offs are compared).
+    /// As [`Prepared::new`] with the cut-off `fc` (`None` = automatic), the regression filter
+    /// and prediction of `smoothing`, and filter edges dropped as for a regression cut-off of
+    /// `edge_fc` (default its own; a common value keeps the samples used the same when cut-offs
+    /// are compared).
     pub fn with_cutoff(
         traj: Arc<Trajectory>,
         cfg: &Config,
         fc: Option<f64>,
+        smoothing: Smoothing,
         edge_fc: Option<f64>,
     ) -> Result<Self, IdentifyError> {
         let name = traj.source.clone();
@@ -191,9 +274,22 @@ impl Prepared {
             }
         };
         let g = est.grid;
-        let efc = edge_fc
-            .unwrap_or(est.report.cutoff_hz)
-            .min(est.report.cutoff_hz);
+        let ratio = smoothing.regression_ratio;
+        let fr = est.report.cutoff_hz * ratio;
+        let rfilter = if ratio == 1.0 {
+            est.filter.clone()
+        } else {
+            let fs = est.report.fs_hz;
+            match cfg.derivative.method {
+                derivative::Method::Butterworth => {
+                    Filter::Butterworth(Butterworth::lowpass(4, fr, fs).map_err(derr)?)
+                }
+                derivative::Method::SavitzkyGolay => {
+                    Filter::SavGol(SavGol::matched(fr, fs).map_err(derr)?)
+                }
+            }
+        };
+        let efc = edge_fc.unwrap_or(fr).min(fr);
         let edge = ((0.5 / efc / g.dt).ceil() as usize).min(g.n / 40);
         let keep = (edge, g.n - edge);
         let (t0, t1) = (g.time(keep.0), g.time(keep.1 - 1));
@@ -209,12 +305,15 @@ impl Prepared {
             est,
             keep,
             raw_keep: (lo, hi.max(lo)),
+            rfilter,
+            rfilter_hz: fr,
+            smoothing,
         })
     }
 
     /// Every how many grid samples a filtered regression row is kept.
     fn decimation(&self) -> usize {
-        let r = self.est.report.fs_hz / (KEEP_RATE_PER_CUTOFF * self.est.report.cutoff_hz);
+        let r = self.est.report.fs_hz / (KEEP_RATE_PER_CUTOFF * self.rfilter_hz);
         (r.floor() as usize).max(1)
     }
 
@@ -378,6 +477,87 @@ impl<'a> Rows<'a> {
 /// decimated rows equal those over all rows to that order, at a fraction of the cost.
 pub const KEEP_RATE_PER_CUTOFF: f64 = 20.0;
 
+/// Grid samples per chunk core (plus the filter's reach on each side).
+const CHUNK_CORE: usize = 8192;
+
+/// Regression rows of one file on its grid around a core `a..b`: the grid samples `lo..hi`
+/// (the core with the regression filter's reach on each side); per joint its active columns
+/// (then τ, if asked), column-major: `cols[j][l * w + (k - lo)]`, `w = hi - lo`.
+struct Chunk {
+    lo: usize,
+    hi: usize,
+    cols: Vec<Vec<f64>>,
+}
+
+impl Chunk {
+    /// Unfiltered rows (and measured τ on the grid) around the core `a..b`, with the margins
+    /// the regression filter needs if `margins` (else one sample on each side, for
+    /// interpolation).
+    fn new(
+        p: &Prepared,
+        rows: &mut Rows,
+        active: &[Vec<usize>],
+        (a, b): (usize, usize),
+        tau: Option<&[Vec<f64>]>,
+        margins: bool,
+    ) -> Chunk {
+        let (n, nc) = (rows.layout.dof, rows.layout.ncols());
+        let g = p.est.grid;
+        let reach = if margins {
+            p.rfilter.as_zero_phase().reach()
+        } else {
+            1
+        };
+        let (lo, hi) = (a.saturating_sub(reach), (b + reach).min(g.n));
+        let w = hi - lo;
+        let extra = usize::from(tau.is_some());
+        let mut cols: Vec<Vec<f64>> = active
+            .iter()
+            .map(|a| vec![0.0; (a.len() + extra) * w])
+            .collect();
+        let mut buf = vec![0.0; n * nc];
+        let (mut q, mut dq, mut ddq) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+        for k in lo..hi {
+            for j in 0..n {
+                (q[j], dq[j], ddq[j]) = (p.est.q[j][k], p.est.dq[j][k], p.est.ddq[j][k]);
+            }
+            rows.fill(&q, &dq, &ddq, &mut buf);
+            for j in 0..n {
+                for (l, &c) in active[j].iter().enumerate() {
+                    cols[j][l * w + (k - lo)] = buf[j * nc + c];
+                }
+                if let Some(t) = tau {
+                    cols[j][active[j].len() * w + (k - lo)] = t[j][k];
+                }
+            }
+        }
+        Chunk { lo, hi, cols }
+    }
+
+    fn w(&self) -> usize {
+        self.hi - self.lo
+    }
+
+    /// Parallel filtering of one joint's channels (all-zero channels are left as they are).
+    fn filter_joint(p: &Prepared, cols: &mut [f64], w: usize, lo: usize, hi: usize) {
+        let mut chans: Vec<&mut [f64]> = cols
+            .chunks_mut(w)
+            .filter(|ch| ch.iter().any(|v| *v != 0.0))
+            .collect();
+        p.rfilter
+            .as_zero_phase()
+            .apply_many(&mut chans, lo == 0, hi == p.est.grid.n);
+    }
+}
+
+/// Chunk cores covering grid samples `k0..k1`.
+fn cores(k0: usize, k1: usize) -> Vec<(usize, usize)> {
+    (k0..k1)
+        .step_by(CHUNK_CORE)
+        .map(|a| (a, (a + CHUNK_CORE).min(k1)))
+        .collect()
+}
+
 /// Parallel-filtered regression of one file into `[block][joint]` accumulators, rows decimated
 /// to [`KEEP_RATE_PER_CUTOFF`]·fc.
 fn accumulate_fit(
@@ -387,10 +567,6 @@ fn accumulate_fit(
     nblocks: usize,
 ) -> Vec<Vec<Accumulator>> {
     let (n, nc) = (layout.dof, layout.ncols());
-    let g = p.est.grid;
-    let filt = p.est.filter.as_zero_phase();
-    let reach = filt.reach();
-    let core = (2 * reach).max(8192);
     let decim = p.decimation();
     // `[joint][block]` while accumulating, so joints run in parallel.
     let mut accs: Vec<Vec<Accumulator>> = layout
@@ -401,47 +577,21 @@ fn accumulate_fit(
     let active: Vec<Vec<usize>> = (0..n).map(|j| layout.active(j)).collect();
     let tau = grid_tau(p);
     let mut rows = Rows::new(base, layout);
-    let mut buf = vec![0.0; n * nc];
-    let (mut q, mut dq, mut ddq) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
     let (k0, k1) = p.keep;
-    let mut a = k0;
-    while a < k1 {
-        let b = (a + core).min(k1);
-        let lo = a.saturating_sub(reach);
-        let hi = (b + reach).min(g.n);
-        let w = hi - lo;
-        // Per joint, its active columns then τ, column-major: cols[j][l * w + (k - lo)].
-        let mut cols: Vec<Vec<f64>> = active
-            .iter()
-            .map(|a| vec![0.0; (a.len() + 1) * w])
-            .collect();
-        for k in lo..hi {
-            for j in 0..n {
-                q[j] = p.est.q[j][k];
-                dq[j] = p.est.dq[j][k];
-                ddq[j] = p.est.ddq[j][k];
-            }
-            rows.fill(&q, &dq, &ddq, &mut buf);
-            for j in 0..n {
-                for (l, &c) in active[j].iter().enumerate() {
-                    cols[j][l * w + (k - lo)] = buf[j * nc + c];
-                }
-                cols[j][active[j].len() * w + (k - lo)] = tau[j][k];
-            }
-        }
+    for (a, b) in cores(k0, k1) {
+        let mut chunk = Chunk::new(p, &mut rows, &active, (a, b), Some(&tau), true);
+        let (lo, hi, w) = (chunk.lo, chunk.hi, chunk.w());
         let keep: Vec<(usize, usize)> = (a..b)
             .filter(|&k| (k - k0) % decim == 0)
             .map(|k| (k, p.block_of(k, nblocks)))
             .collect();
-        cols.par_iter_mut()
+        chunk
+            .cols
+            .par_iter_mut()
             .zip(accs.par_iter_mut())
             .zip(active.par_iter())
             .for_each(|((cj, acc), act)| {
-                let mut chans: Vec<&mut [f64]> = cj
-                    .chunks_mut(w)
-                    .filter(|ch| ch.iter().any(|v| *v != 0.0))
-                    .collect();
-                filt.apply_many(&mut chans, lo == 0, hi == g.n);
+                Chunk::filter_joint(p, cj, w, lo, hi);
                 let mut row = vec![0.0; nc + 1];
                 for &(k, blk) in &keep {
                     for (l, &c) in act.iter().enumerate() {
@@ -451,7 +601,6 @@ fn accumulate_fit(
                     acc[blk].push(&row);
                 }
             });
-        a = b;
     }
     finish_transposed(accs, nblocks)
 }
@@ -484,37 +633,89 @@ fn grid_tau(p: &Prepared) -> Vec<Vec<f64>> {
         .collect()
 }
 
-/// Calls `f(k, q, dq, ddq, tau)` for each raw sample used, states interpolated at its time.
-fn for_raw_samples(
-    p: &Prepared,
-    stride: usize,
-    f: impl FnMut(usize, &[f64], &[f64], &[f64], &[f64]),
-) {
-    for_raw_range(p, p.raw_keep.0, p.raw_keep.1, stride, f)
+/// Where raw sample `r` lies on the grid: `(k, s)`, at `(1 − s)·k + s·(k + 1)`.
+fn grid_pos(p: &Prepared, r: usize) -> (usize, f64) {
+    let g = p.est.grid;
+    if !p.est.report.resampled && g.n == p.traj.len() {
+        return (r, 0.0);
+    }
+    let u = ((p.traj.t[r] - g.t0) / g.dt).clamp(0.0, (g.n - 1) as f64);
+    let k = (u.floor() as usize).min(g.n.saturating_sub(2));
+    (k, u - k as f64)
 }
 
-/// [`for_raw_samples`] over raw samples `lo..hi` (within the used range).
-fn for_raw_range(
+/// First used raw sample at grid position `a` or later.
+fn first_raw_from(p: &Prepared, a: usize) -> usize {
+    let (mut lo, mut hi) = p.raw_keep;
+    while lo < hi {
+        let mid = (lo + hi) / 2;
+        if grid_pos(p, mid).0 < a {
+            lo = mid + 1;
+        } else {
+            hi = mid;
+        }
+    }
+    lo
+}
+
+/// Chunk cores covering the grid positions of the used raw samples.
+fn raw_cores(p: &Prepared) -> Vec<(usize, usize)> {
+    let (lo, hi) = p.raw_keep;
+    if lo >= hi {
+        return Vec::new();
+    }
+    cores(grid_pos(p, lo).0, grid_pos(p, hi - 1).0 + 1)
+}
+
+/// Calls `f(r, k, s, rows)` for the used raw samples `r` of `p` on the grid core `a..b` (every
+/// `stride`-th of the used range), where `rows[j]` holds joint j's active columns of the
+/// *parallel-filtered* regression at the sample's time (linear between grid samples `k` and
+/// `k + 1`, weight `s`). Models are judged through these rows: the prediction is the filtered
+/// one, the very rows the parameters were fitted to.
+fn for_filtered_raw(
     p: &Prepared,
-    lo: usize,
-    hi: usize,
+    rows: &mut Rows,
+    active: &[Vec<usize>],
+    (a, b): (usize, usize),
     stride: usize,
-    mut f: impl FnMut(usize, &[f64], &[f64], &[f64], &[f64]),
+    mut f: impl FnMut(usize, usize, f64, &[Vec<f64>]),
 ) {
-    let n = p.dof();
-    let tau = p.traj.tau.as_deref().unwrap_or(&[]);
-    let (mut q, mut dq, mut ddq) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-    let uniform = !p.est.report.resampled && p.est.grid.n == p.traj.len();
-    for k in (lo..hi).step_by(stride.max(1)) {
-        for j in 0..n {
-            if uniform {
-                (q[j], dq[j], ddq[j]) = (p.est.q[j][k], p.est.dq[j][k], p.est.ddq[j][k]);
-            } else {
-                (q[j], dq[j], ddq[j]) = p.est.at(j, p.traj.t[k]);
+    let filtered = p.smoothing.filtered_prediction;
+    let mut chunk = Chunk::new(p, rows, active, (a, b), None, filtered);
+    let (lo, hi, w) = (chunk.lo, chunk.hi, chunk.w());
+    if filtered {
+        for cj in chunk.cols.iter_mut() {
+            Chunk::filter_joint(p, cj, w, lo, hi);
+        }
+    }
+    let mut row: Vec<Vec<f64>> = active.iter().map(|a| vec![0.0; a.len()]).collect();
+    let stride = stride.max(1);
+    let (r0, r1) = (first_raw_from(p, a), first_raw_from(p, b));
+    let first = r0 + (stride - (r0 - p.raw_keep.0) % stride) % stride;
+    for r in (first..r1).step_by(stride) {
+        let (k, s) = grid_pos(p, r);
+        for (j, rj) in row.iter_mut().enumerate() {
+            let c = &chunk.cols[j];
+            for (l, v) in rj.iter_mut().enumerate() {
+                let x = c[l * w + (k - lo)];
+                *v = if s > 0.0 {
+                    x + s * (c[l * w + (k + 1 - lo)] - x)
+                } else {
+                    x
+                };
             }
         }
-        f(k, &q, &dq, &ddq, &tau[k * n..(k + 1) * n]);
+        f(r, k, s, &row);
     }
+}
+
+/// A model's parameters spread over joint `j`'s active columns (zero outside the model), so a
+/// prediction is one contiguous dot product.
+fn spread(active: &[usize], subset: &[usize], x: &[f64]) -> Vec<f64> {
+    active
+        .iter()
+        .map(|c| subset.iter().position(|s| s == c).map_or(0.0, |k| x[k]))
+        .collect()
 }
 
 /// A model judged against the measured torque: its columns, its parameters fitted on all
@@ -586,35 +787,25 @@ pub fn raw_sums(
     blocks: Option<&[usize]>,
     models: &[Judged],
 ) -> RawSums {
-    let (n, nc) = (layout.dof, layout.ncols());
+    let n = layout.dof;
     let active: Vec<Vec<usize>> = (0..n).map(|j| layout.active(j)).collect();
     let mut total = RawSums::zero(models.len(), n);
     let mut offset = 0;
     for (fi, p) in files.iter().enumerate() {
         let nblocks = blocks.map_or(1, |b| b[fi]);
-        let g = p.est.grid;
-        let (lo, hi) = p.raw_keep;
-        // Per joint, the model's parameters spread over the joint's active columns (zero for
-        // columns outside the model): `[model][full?, then block][joint][active column]`, so
-        // each prediction is one contiguous dot product.
-        let spread = |subset: &[usize], x: &[f64], j: usize| -> Vec<f64> {
-            active[j]
-                .iter()
-                .map(|c| subset.iter().position(|s| s == c).map_or(0.0, |k| x[k]))
-                .collect()
-        };
+        // `[model][full?, then block][joint][active column]`.
         let coef: Vec<Vec<Vec<Vec<f64>>>> = models
             .iter()
             .map(|m| {
                 let mut v = Vec::new();
                 if let Some(x) = m.x {
-                    v.push((0..n).map(|j| spread(m.subset, x, j)).collect());
+                    v.push((0..n).map(|j| spread(&active[j], m.subset, x)).collect());
                 }
                 if let Some(loo) = m.loo {
                     for b in 0..nblocks {
                         v.push(
                             (0..n)
-                                .map(|j| spread(m.subset, &loo[offset + b], j))
+                                .map(|j| spread(&active[j], m.subset, &loo[offset + b]))
                                 .collect(),
                         );
                     }
@@ -622,24 +813,17 @@ pub fn raw_sums(
                 v
             })
             .collect();
-        const CHUNK: usize = 16_384;
-        let starts: Vec<usize> = (lo..hi).step_by(CHUNK).collect();
-        let parts: Vec<RawSums> = starts
+        let tau = p.traj.tau.as_deref().unwrap_or(&[]);
+        let parts: Vec<RawSums> = raw_cores(p)
             .par_iter()
-            .map(|&a| {
+            .map(|&core| {
                 let mut sums = RawSums::zero(models.len(), n);
                 let mut rows = Rows::new(base, layout);
-                let mut buf = vec![0.0; n * nc];
-                let mut row: Vec<Vec<f64>> = active.iter().map(|a| vec![0.0; a.len()]).collect();
-                for_raw_range(p, a, (a + CHUNK).min(hi), 1, |k, q, dq, ddq, tau| {
-                    let kg = (((p.traj.t[k] - g.t0) / g.dt).round().max(0.0) as usize).min(g.n - 1);
-                    let blk = p.block_of(kg, nblocks);
-                    rows.fill(q, dq, ddq, &mut buf);
-                    for j in 0..n {
-                        for (v, &c) in row[j].iter_mut().zip(&active[j]) {
-                            *v = buf[j * nc + c];
-                        }
-                        sums.tss[j] += tau[j] * tau[j];
+                for_filtered_raw(p, &mut rows, &active, core, 1, |r, k, s, row| {
+                    let blk = p.block_of(k + usize::from(s >= 0.5), nblocks);
+                    let tau = &tau[r * n..(r + 1) * n];
+                    for (ss, t) in sums.tss.iter_mut().zip(tau) {
+                        *ss += t * t;
                     }
                     for (m, model) in models.iter().enumerate() {
                         let full = usize::from(model.x.is_some());
@@ -934,6 +1118,9 @@ pub struct FileInfo {
     /// Every how many grid samples a filtered row enters the regression (see
     /// [`KEEP_RATE_PER_CUTOFF`]).
     pub regression_row_every: usize,
+    /// The parallel (regression) filter, e.g. `zero-phase Butterworth, order 4, fc 2.93 Hz`.
+    pub regression_filter: String,
+    pub smoothing: Smoothing,
 }
 
 impl FileInfo {
@@ -946,6 +1133,8 @@ impl FileInfo {
             duration_s: t[t.len() - 1] - t[0],
             derivative: p.est.report.clone(),
             regression_row_every: p.decimation(),
+            regression_filter: p.rfilter.as_zero_phase().describe(),
+            smoothing: p.smoothing,
         }
     }
 }
@@ -1030,18 +1219,20 @@ pub fn run(
         check_dof(v, &base)?;
     }
     let mut cache = PrepCache::default();
-    let (fc, scan) = choose_cutoff(&base, table.as_ref(), &train, cfg, &mut cache)?;
+    let (choice, scan) = choose_cutoff(&base, table.as_ref(), &train, cfg, &mut cache)?;
     // Free the scan's estimates before the final ones are made (peak memory of one copy).
     drop(cache);
+    let (fc, sm) = (choice.cutoff_hz, choice.smoothing);
     let preps: Vec<Prepared> = train
         .iter()
-        .map(|t| Prepared::with_cutoff(t.clone(), cfg, fc, None))
+        .map(|t| Prepared::with_cutoff(t.clone(), cfg, fc, sm, None))
         .collect::<Result<_, _>>()?;
     let val = match validate {
         Some(v) => Some(Prepared::with_cutoff(
             Arc::new(v),
             cfg,
             fc.or(Some(preps[0].est.report.cutoff_hz)),
+            sm,
             None,
         )?),
         None => None,
@@ -1074,16 +1265,21 @@ impl PrepCache {
         t: &Arc<Trajectory>,
         cfg: &Config,
         fc: Option<f64>,
+        sm: Smoothing,
         edge_fc: Option<f64>,
     ) -> Result<Prepared, IdentifyError> {
         let key = (
             Arc::as_ptr(t) as usize,
-            fc.map_or(0, f64::to_bits) ^ edge_fc.map_or(1, f64::to_bits).rotate_left(17),
+            fc.map_or(0, f64::to_bits)
+                ^ edge_fc.map_or(1, f64::to_bits).rotate_left(17)
+                ^ sm.regression_ratio.to_bits().rotate_left(31),
         );
         if let Some((_, _, p)) = self.map.iter().find(|(a, b, _)| (*a, *b) == key) {
-            return Ok(p.clone());
+            let mut p = p.clone();
+            p.smoothing = sm;
+            return Ok(p);
         }
-        let p = Prepared::with_cutoff(t.clone(), cfg, fc, edge_fc)?;
+        let p = Prepared::with_cutoff(t.clone(), cfg, fc, sm, edge_fc)?;
         self.map.push((key.0, key.1, p.clone()));
         Ok(p)
     }
@@ -1093,8 +1289,9 @@ impl PrepCache {
         ts: &[Arc<Trajectory>],
         cfg: &Config,
         fc: Option<f64>,
+        sm: Smoothing,
     ) -> Result<Vec<Prepared>, IdentifyError> {
-        ts.iter().map(|t| self.get(t, cfg, fc, None)).collect()
+        ts.iter().map(|t| self.get(t, cfg, fc, sm, None)).collect()
     }
 }
 
@@ -1134,76 +1331,126 @@ pub fn scan_pieces(train: &[Arc<Trajectory>]) -> Vec<Arc<Trajectory>> {
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct CutoffTrial {
     pub cutoff_hz: f64,
+    pub smoothing: Smoothing,
     /// Held-out relative RMS error against the measured torque (leave-one-block-out).
     pub heldout_error: f64,
 }
 
+/// What the scan chose: the derivative cut-off (`None` = the spectral rule) and the smoothing.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FilterChoice {
+    pub cutoff_hz: Option<f64>,
+    pub smoothing: Smoothing,
+}
+
 /// The automatic cut-off: the spectrum gives the motion band `f_m` (largest over files and
 /// joints, see [`derivative::auto_cutoff`]); cut-offs `f_m · 2^(k/2)`, k = −2..7, below the
-/// noise edge and 0.2·fs are tried, and the one with the smallest held-out error against the
+/// noise edge and 0.2·fs are tried (only the given one with `--cutoff`), each with every
+/// [`Smoothing`] (regression filter at 1 or ½ of the cut-off, predictions from the filtered
+/// rows or from the states), and the combination with the smallest held-out error against the
 /// measured torque wins (rigid model plus every candidate effect, leave-one-block-out, the same
-/// samples for every cut-off). Too low a cut-off distorts the motion; too high a one lets noise
+/// samples for every trial). Too low a cut-off distorts the motion; too high a one lets noise
 /// and vibration into q̈, which biases least squares towards zero — the scan sees both.
-/// Returns `None` (keep the spectral rule) when a cut-off is given or only one is possible.
 pub fn choose_cutoff(
     base: &BaseModel,
     table: Option<&crate::dh::DhTable>,
     train: &[Arc<Trajectory>],
     cfg: &Config,
     cache: &mut PrepCache,
-) -> Result<(Option<f64>, Vec<CutoffTrial>), IdentifyError> {
-    if cfg.derivative.cutoff_hz.is_some() {
-        return Ok((cfg.derivative.cutoff_hz, Vec::new()));
+) -> Result<(FilterChoice, Vec<CutoffTrial>), IdentifyError> {
+    let fallback = FilterChoice {
+        cutoff_hz: cfg.derivative.cutoff_hz,
+        smoothing: cfg.smoothing.unwrap_or_default(),
+    };
+    if cfg.derivative.cutoff_hz.is_some() && cfg.smoothing.is_some() {
+        return Ok((fallback, Vec::new()));
     }
-    let first = cache.get_all(train, cfg, None)?;
-    let (mut band, mut cap) = (0.0f64, f64::INFINITY);
-    for p in &first {
-        let fs = p.est.report.fs_hz;
-        cap = cap.min(0.2 * fs);
-        for c in &p.est.report.per_channel {
-            band = band.max(c.motion_band_hz);
-            cap = cap.min(1.25 * c.noise_edge_hz.max(c.motion_band_hz));
+    let first = cache.get_all(train, cfg, cfg.derivative.cutoff_hz, Smoothing::default())?;
+    let grid: Vec<f64> = match cfg.derivative.cutoff_hz {
+        Some(fc) => vec![fc],
+        None => {
+            let (mut band, mut cap) = (0.0f64, f64::INFINITY);
+            for p in &first {
+                let fs = p.est.report.fs_hz;
+                cap = cap.min(0.2 * fs);
+                for c in &p.est.report.per_channel {
+                    band = band.max(c.motion_band_hz);
+                    cap = cap.min(1.25 * c.noise_edge_hz.max(c.motion_band_hz));
+                }
+            }
+            if band.is_nan() || band <= 0.0 {
+                Vec::new()
+            } else {
+                (-2..=7)
+                    .map(|k| band * 2f64.powf(k as f64 / 2.0))
+                    .filter(|&f| f <= cap)
+                    .collect()
+            }
         }
-    }
-    if band.is_nan() || band <= 0.0 {
-        return Ok((None, Vec::new()));
-    }
-    let grid: Vec<f64> = (-2..=7)
-        .map(|k| band * 2f64.powf(k as f64 / 2.0))
-        .filter(|&f| f <= cap)
-        .collect();
-    if grid.len() < 2 {
-        return Ok((None, Vec::new()));
-    }
-    let edge_fc = grid[0];
+    };
+    let Some(&lowest) = grid.first() else {
+        return Ok((fallback, Vec::new()));
+    };
+    let (ratios, modes): (Vec<f64>, Vec<bool>) = match cfg.smoothing {
+        Some(s) => (vec![s.regression_ratio], vec![s.filtered_prediction]),
+        None => (Smoothing::RATIOS.to_vec(), vec![false, true]),
+    };
+    let edge_fc = lowest * ratios.iter().copied().fold(1.0, f64::min);
     let layout = make_layout(base, table, &first, cfg).0;
     let scan_files = scan_pieces(train);
     let all: Vec<Term> = layout.terms.clone();
     let mut trials = Vec::new();
-    let mut best: Option<(f64, f64)> = None;
-    for &fc in &grid {
+    // One cut-off and regression ratio: both predictions judged on one problem.
+    let trial = |trials: &mut Vec<CutoffTrial>, fc: f64, ratio: f64| -> Result<(), IdentifyError> {
+        let sm = Smoothing {
+            regression_ratio: ratio,
+            filtered_prediction: false,
+        };
         // Not cached: one cut-off's estimates at a time (memory stays that of one copy).
-        let preps: Vec<Prepared> = scan_files
+        let mut preps: Vec<Prepared> = scan_files
             .iter()
-            .map(|t| Prepared::with_cutoff(t.clone(), cfg, Some(fc), Some(edge_fc)))
+            .map(|t| Prepared::with_cutoff(t.clone(), cfg, Some(fc), sm, Some(edge_fc)))
             .collect::<Result<_, _>>()?;
         let problem = Problem::build(base, layout.clone(), &preps, cfg.blocks);
         let subset = problem.subset(&all);
         let Ok(w) = problem.weights(&subset) else {
-            continue;
+            return Ok(());
         };
-        let Ok(e) = problem.cv_raw(base, &preps, &subset, &w) else {
-            continue;
-        };
-        trials.push(CutoffTrial {
-            cutoff_hz: fc,
-            heldout_error: e,
-        });
-        if best.map_or(true, |(_, b)| e < b) {
-            best = Some((fc, e));
+        for &filtered in &modes {
+            for p in &mut preps {
+                p.smoothing.filtered_prediction = filtered;
+            }
+            if let Ok(e) = problem.cv_raw(base, &preps, &subset, &w) {
+                trials.push(CutoffTrial {
+                    cutoff_hz: fc,
+                    smoothing: preps[0].smoothing,
+                    heldout_error: e,
+                });
+            }
+        }
+        Ok(())
+    };
+    for &fc in &grid {
+        for &ratio in &ratios {
+            trial(&mut trials, fc, ratio)?;
         }
     }
-    Ok((best.map(|b| b.0), trials))
+    let choice = best_trial(&trials).map_or(fallback, |b| FilterChoice {
+        cutoff_hz: Some(b.cutoff_hz),
+        smoothing: b.smoothing,
+    });
+    trials.sort_by(|a, b| a.cutoff_hz.total_cmp(&b.cutoff_hz));
+    Ok((choice, trials))
+}
+
+/// The trial with the smallest held-out error (the first of equals).
+fn best_trial(trials: &[CutoffTrial]) -> Option<&CutoffTrial> {
+    trials
+        .iter()
+        .fold(None, |best: Option<&CutoffTrial>, t| match best {
+            Some(b) if b.heldout_error <= t.heldout_error => Some(b),
+            _ => Some(t),
+        })
 }
 
 /// The column layout for `train`: base parameters, then the effect terms (declared and searched,
@@ -1524,26 +1771,44 @@ fn with_hint(mut e: RankError, train: &[Prepared]) -> RankError {
     e
 }
 
-#[allow(clippy::too_many_arguments)]
-fn predict_row(
-    rows: &mut Rows,
+/// Calls `f(r, dq, tau, before, after)` for every `stride`-th used raw sample of `p`, with
+/// the filtered predictions of both models (see [`for_filtered_raw`]), the estimated q̇ at the
+/// sample and its measured τ.
+fn for_predictions(
+    base: &BaseModel,
     layout: &Layout,
-    q: &[f64],
-    dq: &[f64],
-    ddq: &[f64],
-    buf: &mut [f64],
-    m: &ModelResult,
-    out: &mut [f64],
+    p: &Prepared,
+    models: [&ModelResult; 2],
+    stride: usize,
+    mut f: impl FnMut(usize, &[f64], &[f64], &[f64], &[f64]),
 ) {
-    let nc = layout.ncols();
-    rows.fill(q, dq, ddq, buf);
-    for (j, o) in out.iter_mut().enumerate() {
-        *o = m
-            .subset
-            .iter()
-            .zip(&m.x)
-            .map(|(&c, x)| buf[j * nc + c] * x)
-            .sum();
+    let n = layout.dof;
+    let active: Vec<Vec<usize>> = (0..n).map(|j| layout.active(j)).collect();
+    let coef: Vec<Vec<Vec<f64>>> = models
+        .iter()
+        .map(|m| {
+            (0..n)
+                .map(|j| spread(&active[j], &m.subset, &m.x))
+                .collect()
+        })
+        .collect();
+    let tau = p.traj.tau.as_deref().unwrap_or(&[]);
+    let mut rows = Rows::new(base, layout);
+    let (mut dq, mut pb, mut pa) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+    for core in raw_cores(p) {
+        for_filtered_raw(p, &mut rows, &active, core, stride, |r, k, s, row| {
+            for j in 0..n {
+                let d = &p.est.dq[j];
+                dq[j] = if s > 0.0 {
+                    d[k] + s * (d[k + 1] - d[k])
+                } else {
+                    d[k]
+                };
+                pb[j] = ls::dot(&row[j], &coef[0][j]);
+                pa[j] = ls::dot(&row[j], &coef[1][j]);
+            }
+            f(r, &dq, &tau[r * n..(r + 1) * n], &pb, &pa);
+        });
     }
 }
 
@@ -1558,30 +1823,37 @@ fn make_series(
     let n = layout.dof;
     let total: usize = train.iter().map(|p| p.raw_keep.1 - p.raw_keep.0).sum();
     let stride = total.div_ceil(3000).max(1);
-    let mut rows = Rows::new(base, layout);
-    let mut buf = vec![0.0; n * layout.ncols()];
-    let (mut pb, mut pa) = (vec![0.0; n], vec![0.0; n]);
     let mut rv: Vec<BeforeAfter> = vec![(Vec::new(), Vec::new()); n];
     for p in train {
-        for_raw_samples(p, stride, |_, q, dq, ddq, tau| {
-            predict_row(&mut rows, layout, q, dq, ddq, &mut buf, before, &mut pb);
-            predict_row(&mut rows, layout, q, dq, ddq, &mut buf, after, &mut pa);
-            for j in 0..n {
-                rv[j].0.push((dq[j], tau[j] - pb[j]));
-                rv[j].1.push((dq[j], tau[j] - pa[j]));
-            }
-        });
+        for_predictions(
+            base,
+            layout,
+            p,
+            [before, after],
+            stride,
+            |_, dq, tau, pb, pa| {
+                for j in 0..n {
+                    rv[j].0.push((dq[j], tau[j] - pb[j]));
+                    rv[j].1.push((dq[j], tau[j] - pa[j]));
+                }
+            },
+        );
     }
     let mut validation = vec![Vec::new(); n];
     if let Some(p) = val {
         let stride = (p.raw_keep.1 - p.raw_keep.0).div_ceil(4000).max(1);
-        for_raw_samples(p, stride, |k, q, dq, ddq, tau| {
-            predict_row(&mut rows, layout, q, dq, ddq, &mut buf, before, &mut pb);
-            predict_row(&mut rows, layout, q, dq, ddq, &mut buf, after, &mut pa);
-            for j in 0..n {
-                validation[j].push((p.traj.t[k], tau[j], pb[j], pa[j]));
-            }
-        });
+        for_predictions(
+            base,
+            layout,
+            p,
+            [before, after],
+            stride,
+            |r, _, tau, pb, pa| {
+                for j in 0..n {
+                    validation[j].push((p.traj.t[r], tau[j], pb[j], pa[j]));
+                }
+            },
+        );
     }
     Series {
         resid_vs_vel: rv,
@@ -1596,19 +1868,13 @@ fn predictions(
     before: &ModelResult,
     after: &ModelResult,
 ) -> Vec<PredictionRow> {
-    let n = layout.dof;
-    let mut rows = Rows::new(base, layout);
-    let mut buf = vec![0.0; n * layout.ncols()];
     let mut out = Vec::with_capacity(p.raw_keep.1 - p.raw_keep.0);
-    for_raw_samples(p, 1, |k, q, dq, ddq, tau| {
-        let (mut b, mut a) = (vec![0.0; n], vec![0.0; n]);
-        predict_row(&mut rows, layout, q, dq, ddq, &mut buf, before, &mut b);
-        predict_row(&mut rows, layout, q, dq, ddq, &mut buf, after, &mut a);
+    for_predictions(base, layout, p, [before, after], 1, |r, _, tau, pb, pa| {
         out.push(PredictionRow {
-            t: p.traj.t[k],
+            t: p.traj.t[r],
             tau: tau.to_vec(),
-            before: b,
-            after: a,
+            before: pb.to_vec(),
+            after: pa.to_vec(),
         });
     });
     out
@@ -1636,12 +1902,14 @@ pub fn leave_one_out(
             .filter(|(i, _)| *i != k)
             .map(|(_, p)| p.clone())
             .collect();
-        let (fc, scan) = choose_cutoff(&base, table.as_ref(), &train, cfg, &mut cache)?;
-        let preps = cache.get_all(&train, cfg, fc)?;
+        let (choice, scan) = choose_cutoff(&base, table.as_ref(), &train, cfg, &mut cache)?;
+        let (fc, sm) = (choice.cutoff_hz, choice.smoothing);
+        let preps = cache.get_all(&train, cfg, fc, sm)?;
         let val = cache.get(
             &files[k],
             cfg,
             fc.or(Some(preps[0].est.report.cutoff_hz)),
+            sm,
             None,
         )?;
         let mut o = run_prepared(arm.name(), &base, table.as_ref(), &preps, Some(&val), cfg)?;
@@ -1688,6 +1956,17 @@ mod tests {
             ddq: None,
             tau: Some(vec![0.0; len]),
         })
+    }
+
+    #[test]
+    fn smoothing_parses_ratio_and_prediction_and_rejects_the_rest() {
+        let s = Smoothing::parse("0.5, filtered").unwrap();
+        assert_eq!((s.regression_ratio, s.filtered_prediction), (0.5, true));
+        assert!(!Smoothing::parse("1,states").unwrap().filtered_prediction);
+        for bad in ["0.5", "0,states", "1.5,states", "x,filtered", "1,raw"] {
+            let e = Smoothing::parse(bad).unwrap_err();
+            assert!(e.contains(bad) && e.contains("0.5,filtered"), "{e}");
+        }
     }
 
     #[test]
