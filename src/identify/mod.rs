@@ -445,6 +445,10 @@ struct Rows<'a> {
     layout: &'a Layout,
     scratch: base::Scratch,
     yb: Vec<f64>,
+    /// State buffers of [`Rows::fill_grid`].
+    q: Vec<f64>,
+    dq: Vec<f64>,
+    ddq: Vec<f64>,
 }
 
 impl<'a> Rows<'a> {
@@ -454,7 +458,25 @@ impl<'a> Rows<'a> {
             layout,
             scratch: base.scratch(),
             yb: vec![0.0; layout.dof * layout.nb],
+            q: vec![0.0; layout.dof],
+            dq: vec![0.0; layout.dof],
+            ddq: vec![0.0; layout.dof],
         }
+    }
+
+    /// Rows at grid sample `k` of `p`'s estimated states.
+    fn fill_grid(&mut self, p: &Prepared, k: usize, out: &mut [f64]) {
+        let e = &p.est;
+        for j in 0..self.layout.dof {
+            (self.q[j], self.dq[j], self.ddq[j]) = (e.q[j][k], e.dq[j][k], e.ddq[j][k]);
+        }
+        let (q, dq, ddq) = (
+            std::mem::take(&mut self.q),
+            std::mem::take(&mut self.dq),
+            std::mem::take(&mut self.ddq),
+        );
+        self.fill(&q, &dq, &ddq, out);
+        (self.q, self.dq, self.ddq) = (q, dq, ddq);
     }
 
     fn fill(&mut self, q: &[f64], dq: &[f64], ddq: &[f64], out: &mut [f64]) {
@@ -477,12 +499,12 @@ impl<'a> Rows<'a> {
 /// decimated rows equal those over all rows to that order, at a fraction of the cost.
 pub const KEEP_RATE_PER_CUTOFF: f64 = 20.0;
 
-/// Grid samples per chunk core (plus the filter's reach on each side).
+/// Fewest grid samples per chunk core (plus the filter's reach on each side).
 const CHUNK_CORE: usize = 8192;
 
 /// Regression rows of one file on its grid around a core `a..b`: the grid samples `lo..hi`
 /// (the core with the regression filter's reach on each side); per joint its active columns
-/// (then τ, if asked), column-major: `cols[j][l * w + (k - lo)]`, `w = hi - lo`.
+/// then τ, column-major: `cols[j][l * w + (k - lo)]`, `w = hi - lo`.
 struct Chunk {
     lo: usize,
     hi: usize,
@@ -490,45 +512,30 @@ struct Chunk {
 }
 
 impl Chunk {
-    /// Unfiltered rows (and measured τ on the grid) around the core `a..b`, with the margins
-    /// the regression filter needs if `margins` (else one sample on each side, for
-    /// interpolation).
+    /// Unfiltered rows and the measured τ on the grid (`tau[j][k]`) around the core `a..b`.
     fn new(
         p: &Prepared,
         rows: &mut Rows,
         active: &[Vec<usize>],
         (a, b): (usize, usize),
-        tau: Option<&[Vec<f64>]>,
-        margins: bool,
+        tau: &[Vec<f64>],
     ) -> Chunk {
         let (n, nc) = (rows.layout.dof, rows.layout.ncols());
-        let g = p.est.grid;
-        let reach = if margins {
-            p.rfilter.as_zero_phase().reach()
-        } else {
-            1
-        };
-        let (lo, hi) = (a.saturating_sub(reach), (b + reach).min(g.n));
+        let reach = p.rfilter.as_zero_phase().reach();
+        let (lo, hi) = (a.saturating_sub(reach), (b + reach).min(p.est.grid.n));
         let w = hi - lo;
-        let extra = usize::from(tau.is_some());
         let mut cols: Vec<Vec<f64>> = active
             .iter()
-            .map(|a| vec![0.0; (a.len() + extra) * w])
+            .map(|a| vec![0.0; (a.len() + 1) * w])
             .collect();
         let mut buf = vec![0.0; n * nc];
-        let (mut q, mut dq, mut ddq) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
         for k in lo..hi {
-            for j in 0..n {
-                (q[j], dq[j], ddq[j]) = (p.est.q[j][k], p.est.dq[j][k], p.est.ddq[j][k]);
-            }
-            rows.fill(&q, &dq, &ddq, &mut buf);
+            rows.fill_grid(p, k, &mut buf);
             for j in 0..n {
                 for (l, &c) in active[j].iter().enumerate() {
                     cols[j][l * w + (k - lo)] = buf[j * nc + c];
                 }
-                if let Some(t) = tau {
-                    cols[j][active[j].len() * w + (k - lo)] = t[j][k];
-                }
+                cols[j][active[j].len() * w + (k - lo)] = tau[j][k];
             }
         }
         Chunk { lo, hi, cols }
@@ -550,11 +557,13 @@ impl Chunk {
     }
 }
 
-/// Chunk cores covering grid samples `k0..k1`.
-fn cores(k0: usize, k1: usize) -> Vec<(usize, usize)> {
+/// Chunk cores covering grid samples `k0..k1` of `p`: at least twice the regression filter's
+/// reach long, so the margins never cost more than the core.
+fn cores(p: &Prepared, k0: usize, k1: usize) -> Vec<(usize, usize)> {
+    let core = (2 * p.rfilter.as_zero_phase().reach()).max(CHUNK_CORE);
     (k0..k1)
-        .step_by(CHUNK_CORE)
-        .map(|a| (a, (a + CHUNK_CORE).min(k1)))
+        .step_by(core)
+        .map(|a| (a, (a + core).min(k1)))
         .collect()
 }
 
@@ -578,8 +587,8 @@ fn accumulate_fit(
     let tau = grid_tau(p);
     let mut rows = Rows::new(base, layout);
     let (k0, k1) = p.keep;
-    for (a, b) in cores(k0, k1) {
-        let mut chunk = Chunk::new(p, &mut rows, &active, (a, b), Some(&tau), true);
+    for (a, b) in cores(p, k0, k1) {
+        let mut chunk = Chunk::new(p, &mut rows, &active, (a, b), &tau);
         let (lo, hi, w) = (chunk.lo, chunk.hi, chunk.w());
         let keep: Vec<(usize, usize)> = (a..b)
             .filter(|&k| (k - k0) % decim == 0)
@@ -664,49 +673,94 @@ fn raw_cores(p: &Prepared) -> Vec<(usize, usize)> {
     if lo >= hi {
         return Vec::new();
     }
-    cores(grid_pos(p, lo).0, grid_pos(p, hi - 1).0 + 1)
+    cores(p, grid_pos(p, lo).0, grid_pos(p, hi - 1).0 + 1)
 }
 
-/// Calls `f(r, k, s, rows)` for the used raw samples `r` of `p` on the grid core `a..b` (every
-/// `stride`-th of the used range), where `rows[j]` holds joint j's active columns of the
-/// *parallel-filtered* regression at the sample's time (linear between grid samples `k` and
-/// `k + 1`, weight `s`). Models are judged through these rows: the prediction is the filtered
-/// one, the very rows the parameters were fitted to.
-fn for_filtered_raw(
-    p: &Prepared,
-    rows: &mut Rows,
-    active: &[Vec<usize>],
-    (a, b): (usize, usize),
-    stride: usize,
-    mut f: impl FnMut(usize, usize, f64, &[Vec<f64>]),
-) {
-    let filtered = p.smoothing.filtered_prediction;
-    let mut chunk = Chunk::new(p, rows, active, (a, b), None, filtered);
-    let (lo, hi, w) = (chunk.lo, chunk.hi, chunk.w());
-    if filtered {
-        for cj in chunk.cols.iter_mut() {
-            Chunk::filter_joint(p, cj, w, lo, hi);
+/// Torque predictions of several coefficient sets (`[set][joint][active column]`) on a file's
+/// grid around a core `a..b`: `pred[set][j][k - lo]` for the sets asked for (the others stay
+/// empty), from the rows of the estimated states — and parallel-filtered when the file's
+/// [`Smoothing`] predicts from the filtered rows (the same thing: the filter is linear, so
+/// filtering a prediction equals predicting from filtered rows, at a fraction of the channels).
+struct Predicted {
+    lo: usize,
+    pred: Vec<Vec<Vec<f64>>>,
+}
+
+impl Predicted {
+    fn new(
+        p: &Prepared,
+        rows: &mut Rows,
+        active: &[Vec<usize>],
+        (a, b): (usize, usize),
+        coefs: &[Vec<Vec<f64>>],
+        wanted: &[bool],
+    ) -> Predicted {
+        let (n, nc) = (rows.layout.dof, rows.layout.ncols());
+        let g = p.est.grid;
+        let filtered = p.smoothing.filtered_prediction;
+        // One sample either side at least, for the interpolation to raw sample times.
+        let reach = if filtered {
+            p.rfilter.as_zero_phase().reach().max(1)
+        } else {
+            1
+        };
+        let (lo, hi) = (a.saturating_sub(reach), (b + reach).min(g.n));
+        let w = hi - lo;
+        let mut pred: Vec<Vec<Vec<f64>>> = wanted
+            .iter()
+            .map(|&u| if u { vec![vec![0.0; w]; n] } else { Vec::new() })
+            .collect();
+        let mut buf = vec![0.0; n * nc];
+        let mut row: Vec<Vec<f64>> = active.iter().map(|a| vec![0.0; a.len()]).collect();
+        for k in lo..hi {
+            rows.fill_grid(p, k, &mut buf);
+            for (j, rj) in row.iter_mut().enumerate() {
+                for (v, &c) in rj.iter_mut().zip(&active[j]) {
+                    *v = buf[j * nc + c];
+                }
+            }
+            for (set, out) in coefs.iter().zip(pred.iter_mut()) {
+                for (j, o) in out.iter_mut().enumerate() {
+                    o[k - lo] = ls::dot(&row[j], &set[j]);
+                }
+            }
+        }
+        if filtered {
+            let mut chans: Vec<&mut [f64]> = pred
+                .iter_mut()
+                .flatten()
+                .map(|c| c.as_mut_slice())
+                .collect();
+            p.rfilter
+                .as_zero_phase()
+                .apply_many(&mut chans, lo == 0, hi == g.n);
+        }
+        Predicted { lo, pred }
+    }
+
+    /// Set `c`'s prediction for joint `j` at grid position `(k, s)` (see [`grid_pos`]).
+    fn at(&self, c: usize, j: usize, (k, s): (usize, f64)) -> f64 {
+        let x = &self.pred[c][j];
+        let v = x[k - self.lo];
+        if s > 0.0 {
+            v + s * (x[k + 1 - self.lo] - v)
+        } else {
+            v
         }
     }
-    let mut row: Vec<Vec<f64>> = active.iter().map(|a| vec![0.0; a.len()]).collect();
+}
+
+/// Used raw samples of `p` whose grid position lies in the core `a..b`, every `stride`-th of
+/// the used range.
+fn raw_in_core(
+    p: &Prepared,
+    (a, b): (usize, usize),
+    stride: usize,
+) -> std::iter::StepBy<std::ops::Range<usize>> {
     let stride = stride.max(1);
     let (r0, r1) = (first_raw_from(p, a), first_raw_from(p, b));
     let first = r0 + (stride - (r0 - p.raw_keep.0) % stride) % stride;
-    for r in (first..r1).step_by(stride) {
-        let (k, s) = grid_pos(p, r);
-        for (j, rj) in row.iter_mut().enumerate() {
-            let c = &chunk.cols[j];
-            for (l, v) in rj.iter_mut().enumerate() {
-                let x = c[l * w + (k - lo)];
-                *v = if s > 0.0 {
-                    x + s * (c[l * w + (k + 1 - lo)] - x)
-                } else {
-                    x
-                };
-            }
-        }
-        f(r, k, s, &row);
-    }
+    (first..r1.max(first)).step_by(stride)
 }
 
 /// A model's parameters spread over joint `j`'s active columns (zero outside the model), so a
@@ -814,12 +868,36 @@ pub fn raw_sums(
             })
             .collect();
         let tau = p.traj.tau.as_deref().unwrap_or(&[]);
+        // Coefficient sets in one list: `sets[base[m] + i]`, `i` = full (if any), then blocks.
+        let mut sets: Vec<Vec<Vec<f64>>> = Vec::new();
+        let mut first_set = Vec::new();
+        for c in &coef {
+            first_set.push(sets.len());
+            sets.extend(c.iter().cloned());
+        }
         let parts: Vec<RawSums> = raw_cores(p)
             .par_iter()
             .map(|&core| {
                 let mut sums = RawSums::zero(models.len(), n);
                 let mut rows = Rows::new(base, layout);
-                for_filtered_raw(p, &mut rows, &active, core, 1, |r, k, s, row| {
+                // Only the blocks this chunk's samples can fall in (filter margins included).
+                let (b0, b1) = (
+                    p.block_of(core.0.saturating_sub(1), nblocks),
+                    p.block_of(core.1, nblocks),
+                );
+                let mut wanted = vec![false; sets.len()];
+                for (m, model) in models.iter().enumerate() {
+                    let full = usize::from(model.x.is_some());
+                    wanted[first_set[m]] |= full == 1;
+                    if model.loo.is_some() {
+                        for blk in b0..=b1 {
+                            wanted[first_set[m] + full + blk] = true;
+                        }
+                    }
+                }
+                let pc = Predicted::new(p, &mut rows, &active, core, &sets, &wanted);
+                for r in raw_in_core(p, core, 1) {
+                    let (k, s) = grid_pos(p, r);
                     let blk = p.block_of(k + usize::from(s >= 0.5), nblocks);
                     let tau = &tau[r * n..(r + 1) * n];
                     for (ss, t) in sums.tss.iter_mut().zip(tau) {
@@ -827,18 +905,18 @@ pub fn raw_sums(
                     }
                     for (m, model) in models.iter().enumerate() {
                         let full = usize::from(model.x.is_some());
-                        for j in 0..n {
+                        for (j, &t) in tau.iter().enumerate() {
                             if full == 1 {
-                                let e = tau[j] - ls::dot(&row[j], &coef[m][0][j]);
+                                let e = t - pc.at(first_set[m], j, (k, s));
                                 sums.sse[m][j] += e * e;
                             }
                             if model.loo.is_some() {
-                                let e = tau[j] - ls::dot(&row[j], &coef[m][full + blk][j]);
+                                let e = t - pc.at(first_set[m] + full + blk, j, (k, s));
                                 sums.heldout[m][j] += e * e;
                             }
                         }
                     }
-                });
+                }
                 sums
             })
             .collect();
@@ -1772,7 +1850,7 @@ fn with_hint(mut e: RankError, train: &[Prepared]) -> RankError {
 }
 
 /// Calls `f(r, dq, tau, before, after)` for every `stride`-th used raw sample of `p`, with
-/// the filtered predictions of both models (see [`for_filtered_raw`]), the estimated q̇ at the
+/// the predictions of both models (see [`Predicted`]), the estimated q̇ at the
 /// sample and its measured τ.
 fn for_predictions(
     base: &BaseModel,
@@ -1796,7 +1874,9 @@ fn for_predictions(
     let mut rows = Rows::new(base, layout);
     let (mut dq, mut pb, mut pa) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
     for core in raw_cores(p) {
-        for_filtered_raw(p, &mut rows, &active, core, stride, |r, k, s, row| {
+        let pc = Predicted::new(p, &mut rows, &active, core, &coef, &[true, true]);
+        for r in raw_in_core(p, core, stride) {
+            let (k, s) = grid_pos(p, r);
             for j in 0..n {
                 let d = &p.est.dq[j];
                 dq[j] = if s > 0.0 {
@@ -1804,11 +1884,11 @@ fn for_predictions(
                 } else {
                     d[k]
                 };
-                pb[j] = ls::dot(&row[j], &coef[0][j]);
-                pa[j] = ls::dot(&row[j], &coef[1][j]);
+                pb[j] = pc.at(0, j, (k, s));
+                pa[j] = pc.at(1, j, (k, s));
             }
             f(r, &dq, &tau[r * n..(r + 1) * n], &pb, &pa);
-        });
+        }
     }
 }
 
