@@ -1,12 +1,16 @@
 //! Derivative estimation from sampled positions: zero-phase low-pass filtering, finite differences,
 //! Savitzky–Golay, resampling of uneven grids and the automatic choice of the cut-off frequency.
 //!
-//! What [`estimate`] does, in order (and reports in [`DerivativeReport`]):
+//! What an [`Estimator`] does, in order (and reports in [`DerivativeReport`]); it is set up once
+//! per file and then run window by window ([`Estimator::window`], each window with the filter's
+//! reach of margin, so a long log's states never exist all at once; [`estimate`] is the whole
+//! signal as one window):
 //! 1. **Sampling check.** Times must be finite and strictly increasing. If the spacing is uneven
 //!    (jitter larger than 10⁻⁶ of the median step), every channel is *resampled* by linear
 //!    interpolation onto a uniform grid with the median step, so the filters below are well
-//!    defined; the jitter (min/median/max/std of dt) is reported. Estimates are later brought back
-//!    to the original sample times with cubic Hermite interpolation ([`Estimate::at`]).
+//!    defined; the jitter (min/median/max/std of dt) is reported. Identification brings its
+//!    predictions back to the original sample times by linear interpolation between grid
+//!    samples; [`Estimate::at`] interpolates the states themselves (cubic Hermite).
 //! 2. **Cut-off.** By default chosen from the spectrum of the positions ([`auto_cutoff`]): a Welch
 //!    periodogram of the second difference (which whitens the steep position spectrum and so
 //!    limits window leakage), divided back by the difference operator's gain, gives the position
@@ -937,127 +941,268 @@ impl Estimate {
     }
 }
 
+/// Raw samples of one file, row-major (`q[k * dof + j]`), as loaded.
+#[derive(Debug, Clone, Copy)]
+pub struct Raw<'a> {
+    pub t: &'a [f64],
+    pub dof: usize,
+    pub q: &'a [f64],
+    /// A q̇ column to filter (instead of differentiating q).
+    pub dq: Option<&'a [f64]>,
+    /// A q̈ column: with `dq`, the derivatives are used as given (resampled if uneven).
+    pub ddq: Option<&'a [f64]>,
+}
+
+/// The estimator of one file, set up once (sampling, grid, cut-off, filter) and then run window
+/// by window ([`Estimator::window`]), so no copy of the whole log's states is ever needed: each
+/// window is filtered with the filter's reach of margin on both sides, which makes it equal to
+/// estimating the whole signal at once to ~1e-7 of the signal's range (test: 7e-8).
+#[derive(Debug, Clone)]
+pub struct Estimator {
+    pub grid: Grid,
+    pub filter: Filter,
+    pub report: DerivativeReport,
+    /// Derivatives taken from the file as they are.
+    given: bool,
+}
+
+/// Estimated states of grid samples `lo..lo + len`: `q[j][k - lo]`, likewise q̇, q̈.
+#[derive(Debug, Clone)]
+pub struct States {
+    pub lo: usize,
+    pub q: Vec<Vec<f64>>,
+    pub dq: Vec<Vec<f64>>,
+    pub ddq: Vec<Vec<f64>>,
+}
+
+impl Estimator {
+    /// Checks the samples and sets up the estimator (cut-off automatic from the spectrum unless
+    /// given) — see the module docs.
+    pub fn new(raw: Raw, opts: &Options) -> Result<Self, DerivativeError> {
+        let sampling = Sampling::of(raw.t)?;
+        let n_j = raw.dof;
+        let chans: Vec<(usize, &[f64])> = std::iter::once(raw.q)
+            .chain(raw.dq)
+            .chain(raw.ddq)
+            .enumerate()
+            .collect();
+        for (c, x) in chans {
+            if let Some(k) = x.iter().position(|v| !v.is_finite()) {
+                return Err(DerivativeError::NonFinite {
+                    channel: c * n_j + k % n_j + 1,
+                    row: k / n_j,
+                });
+            }
+        }
+        let grid = grid_for(raw.t, &sampling);
+        let fs = 1.0 / grid.dt;
+        let given = raw.dq.is_some() && raw.ddq.is_some();
+        let (fc, per_channel, auto) = match opts.cutoff_hz {
+            Some(fc) => (fc, Vec::new(), false),
+            None => {
+                // Velocity channels are integrated view-wise: their spectrum is judged like q's by
+                // using a running sum (so one rule serves both).
+                let whole = |x: &[f64]| on_grid(raw.t, &sampling, &grid, x, n_j, 0, grid.n);
+                let mut chans: Vec<Vec<f64>> = whole(raw.q);
+                if let (Some(d), false) = (raw.dq, given) {
+                    for x in whole(d) {
+                        let mut acc = 0.0;
+                        chans.push(
+                            x.iter()
+                                .map(|v| {
+                                    acc += v * grid.dt;
+                                    acc
+                                })
+                                .collect(),
+                        );
+                    }
+                }
+                let refs: Vec<&[f64]> = chans.iter().map(|c| c.as_slice()).collect();
+                let (fc, per) = auto_cutoff(&refs, fs);
+                (fc, per, true)
+            }
+        };
+        let filter = match opts.method {
+            Method::Butterworth => Filter::Butterworth(Butterworth::lowpass(4, fc, fs)?),
+            Method::SavitzkyGolay => Filter::SavGol(SavGol::matched(fc, fs)?),
+        };
+        let (dq_source, ddq_source) = match (raw.dq.is_some(), given) {
+            (_, true) => ("file (as given)", "file (as given)"),
+            (true, false) => ("file, filtered", "differentiated filtered dq"),
+            (false, false) => ("differentiated q", "differentiated q"),
+        };
+        let report = DerivativeReport {
+            method: opts.method,
+            filter: filter.as_zero_phase().describe(),
+            cutoff_hz: fc,
+            cutoff_auto: auto,
+            per_channel,
+            sampling,
+            resampled: !sampling.uniform,
+            dq_source: dq_source.into(),
+            ddq_source: ddq_source.into(),
+            fs_hz: fs,
+        };
+        Ok(Estimator {
+            grid,
+            filter,
+            report,
+            given,
+        })
+    }
+
+    /// Channel `x` (row-major, `dof` per row) on grid samples `lo..hi`, per joint (resampled
+    /// linearly if the sampling is uneven).
+    pub fn on_grid(&self, t: &[f64], x: &[f64], dof: usize, lo: usize, hi: usize) -> Vec<Vec<f64>> {
+        on_grid(t, &self.report.sampling, &self.grid, x, dof, lo, hi)
+    }
+
+    /// Estimated states on grid samples `lo..hi`.
+    pub fn window(&self, raw: Raw, lo: usize, hi: usize) -> States {
+        let n = self.grid.n;
+        let margin = if self.given {
+            0
+        } else {
+            self.filter.as_zero_phase().reach() + 4
+        };
+        let (mut elo, mut ehi) = (lo.saturating_sub(margin), (hi + margin).min(n));
+        // A short window at an end still gets a full margin on its inner side (end treatments
+        // such as a Savitzky–Golay end fit or the padding length depend on the length).
+        let span = 2 * margin + 1;
+        if ehi - elo < span {
+            if elo == 0 {
+                ehi = span.min(n);
+            } else {
+                elo = ehi.saturating_sub(span);
+            }
+        }
+        let (pad_left, pad_right) = (elo == 0, ehi == n);
+        let dt = self.grid.dt;
+        let g = |x: &[f64]| self.on_grid(raw.t, x, raw.dof, elo, ehi);
+        let qg = g(raw.q);
+        let dqg = raw.dq.map(g);
+        let ddqg = raw.ddq.map(g);
+        let cut = |x: Vec<f64>| x[lo - elo..hi - elo].to_vec();
+        let mut st = States {
+            lo,
+            q: Vec::with_capacity(raw.dof),
+            dq: Vec::with_capacity(raw.dof),
+            ddq: Vec::with_capacity(raw.dof),
+        };
+        match (&self.filter, dqg, ddqg) {
+            (_, Some(d), Some(dd)) if self.given => {
+                (st.q, st.dq, st.ddq) = (qg, d, dd);
+                for x in st.q.iter_mut().chain(&mut st.dq).chain(&mut st.ddq) {
+                    *x = cut(std::mem::take(x));
+                }
+            }
+            (Filter::Butterworth(bw), dqg, _) => {
+                // All channels in one side-by-side sweep.
+                let mut q = qg;
+                let mut v = dqg.unwrap_or_default();
+                let mut chans: Vec<&mut [f64]> = q
+                    .iter_mut()
+                    .chain(v.iter_mut())
+                    .map(|c| c.as_mut_slice())
+                    .collect();
+                bw.apply_many(&mut chans, pad_left, pad_right);
+                for j in 0..raw.dof {
+                    let (d1, d2) = if v.is_empty() {
+                        central_uniform(&q[j], dt)
+                    } else {
+                        let a = central_uniform(&v[j], dt).0;
+                        (std::mem::take(&mut v[j]), a)
+                    };
+                    st.q.push(cut(std::mem::take(&mut q[j])));
+                    st.dq.push(cut(d1));
+                    st.ddq.push(cut(d2));
+                }
+            }
+            (Filter::SavGol(sg), dqg, _) => {
+                for (j, qj) in qg.iter().enumerate() {
+                    let [a, b, c] = sg.derivatives(qj);
+                    let (b, c) = match &dqg {
+                        Some(d) => {
+                            let [v, acc, _] = sg.derivatives(&d[j]);
+                            (v, acc)
+                        }
+                        None => (b, c),
+                    };
+                    st.q.push(cut(a));
+                    st.dq.push(cut(b));
+                    st.ddq.push(cut(c));
+                }
+            }
+        }
+        st
+    }
+}
+
+/// Channel `x` (row-major, `dof` per row, sampled at `t`) on grid samples `lo..hi`, per joint.
+fn on_grid(
+    t: &[f64],
+    sampling: &Sampling,
+    grid: &Grid,
+    x: &[f64],
+    dof: usize,
+    lo: usize,
+    hi: usize,
+) -> Vec<Vec<f64>> {
+    if sampling.uniform {
+        return (0..dof)
+            .map(|j| (lo..hi).map(|k| x[k * dof + j]).collect())
+            .collect();
+    }
+    // Raw samples around the window's times (grid times lie inside `t`).
+    let (t0, t1) = (grid.time(lo), grid.time(hi.max(lo + 1) - 1));
+    let r0 = t.partition_point(|&v| v <= t0).saturating_sub(1);
+    let r1 = (t.partition_point(|&v| v < t1) + 1).min(t.len() - 1);
+    let (r0, r1) = (r0.min(r1.saturating_sub(1)), r1.max(1));
+    let sub = Grid {
+        t0,
+        dt: grid.dt,
+        n: hi - lo,
+    };
+    (0..dof)
+        .map(|j| {
+            let xs: Vec<f64> = (r0..=r1).map(|k| x[k * dof + j]).collect();
+            resample_linear(&t[r0..=r1], &xs, &sub)
+        })
+        .collect()
+}
+
 /// Estimates filtered `q, q̇, q̈` on a uniform grid from samples `t`, `q[j]` and optionally
 /// measured `dq[j]` (then q̈ comes from differentiating the filtered q̇, and the cut-off is chosen
-/// from both) — see the module docs.
+/// from both) — see the module docs. The whole signal as one [`Estimator::window`].
 pub fn estimate(
     t: &[f64],
     q: &[Vec<f64>],
     dq: Option<&[Vec<f64>]>,
     opts: &Options,
 ) -> Result<Estimate, DerivativeError> {
-    let sampling = Sampling::of(t)?;
-    for (c, ch) in q.iter().chain(dq.into_iter().flatten()).enumerate() {
-        if let Some(row) = ch.iter().position(|v| !v.is_finite()) {
-            return Err(DerivativeError::NonFinite {
-                channel: c + 1,
-                row,
-            });
-        }
-    }
-    let grid = grid_for(t, &sampling);
-    let fs = 1.0 / grid.dt;
-    let on_grid = |x: &[f64]| {
-        if sampling.uniform {
-            x.to_vec()
-        } else {
-            resample_linear(t, x, &grid)
-        }
+    let dof = q.len();
+    let rows = |c: &[Vec<f64>]| -> Vec<f64> {
+        (0..t.len())
+            .flat_map(|k| c.iter().map(move |x| x.get(k).copied().unwrap_or(f64::NAN)))
+            .collect()
     };
-    let qg: Vec<Vec<f64>> = q.iter().map(|x| on_grid(x)).collect();
-    let dqg: Option<Vec<Vec<f64>>> = dq.map(|d| d.iter().map(|x| on_grid(x)).collect());
-
-    let (fc, per_channel, auto) = match opts.cutoff_hz {
-        Some(fc) => (fc, Vec::new(), false),
-        None => {
-            // Velocity channels are integrated view-wise: their spectrum is judged like q's by
-            // using a running sum (so one rule serves both).
-            let mut chans: Vec<Vec<f64>> = qg.clone();
-            if let Some(d) = &dqg {
-                for x in d {
-                    let mut acc = 0.0;
-                    chans.push(
-                        x.iter()
-                            .map(|v| {
-                                acc += v * grid.dt;
-                                acc
-                            })
-                            .collect(),
-                    );
-                }
-            }
-            let refs: Vec<&[f64]> = chans.iter().map(|c| c.as_slice()).collect();
-            let (fc, per) = auto_cutoff(&refs, fs);
-            (fc, per, true)
-        }
+    let (qr, dqr) = (rows(q), dq.map(rows));
+    let raw = Raw {
+        t,
+        dof,
+        q: &qr,
+        dq: dqr.as_deref(),
+        ddq: None,
     };
-    let filter = match opts.method {
-        Method::Butterworth => Filter::Butterworth(Butterworth::lowpass(4, fc, fs)?),
-        Method::SavitzkyGolay => Filter::SavGol(SavGol::matched(fc, fs)?),
-    };
-    let n_j = q.len();
-    let (mut qf, mut dqf, mut ddqf) = (
-        Vec::with_capacity(n_j),
-        Vec::with_capacity(n_j),
-        Vec::with_capacity(n_j),
-    );
-    for j in 0..n_j {
-        let (a, b, c) = match (&filter, &dqg) {
-            (Filter::Butterworth(bw), None) => {
-                let mut x = qg[j].clone();
-                bw.filtfilt(&mut x);
-                let (d1, d2) = central_uniform(&x, grid.dt);
-                (x, d1, d2)
-            }
-            (Filter::Butterworth(bw), Some(d)) => {
-                let mut x = qg[j].clone();
-                bw.filtfilt(&mut x);
-                let mut v = d[j].clone();
-                bw.filtfilt(&mut v);
-                let (a, _) = central_uniform(&v, grid.dt);
-                (x, v, a)
-            }
-            (Filter::SavGol(sg), None) => {
-                let [a, b, c] = sg.derivatives(&qg[j]);
-                (a, b, c)
-            }
-            (Filter::SavGol(sg), Some(d)) => {
-                let [a, _, _] = sg.derivatives(&qg[j]);
-                let [v, acc, _] = sg.derivatives(&d[j]);
-                (a, v, acc)
-            }
-        };
-        qf.push(a);
-        dqf.push(b);
-        ddqf.push(c);
-    }
-    let report = DerivativeReport {
-        method: opts.method,
-        filter: filter.as_zero_phase().describe(),
-        cutoff_hz: fc,
-        cutoff_auto: auto,
-        per_channel,
-        sampling,
-        resampled: !sampling.uniform,
-        dq_source: if dq.is_some() {
-            "file, filtered".into()
-        } else {
-            "differentiated q".into()
-        },
-        ddq_source: if dq.is_some() {
-            "differentiated filtered dq".into()
-        } else {
-            "differentiated q".into()
-        },
-        fs_hz: fs,
-    };
+    let e = Estimator::new(raw, opts)?;
+    let st = e.window(raw, 0, e.grid.n);
     Ok(Estimate {
-        grid,
-        q: qf,
-        dq: dqf,
-        ddq: ddqf,
-        filter,
-        report,
+        grid: e.grid,
+        q: st.q,
+        dq: st.dq,
+        ddq: st.ddq,
+        filter: e.filter,
+        report: e.report,
     })
 }
 
@@ -1311,6 +1456,63 @@ mod tests {
                 "t={tk}"
             );
         }
+    }
+
+    /// Windows with the filter's reach of margin reproduce the whole-signal estimate (the claim
+    /// that lets identification never hold a long log's states): uneven times, two joints, with
+    /// and without a q̇ column, both filters; windows cut anywhere, including at the ends.
+    #[test]
+    fn windows_equal_the_whole_signal_estimate() {
+        let mut t = Vec::new();
+        let mut tk = 0.0;
+        for k in 0..9000 {
+            t.push(tk);
+            tk += if k % 89 == 0 { 0.003 } else { 0.002 } + 1e-5 * ((k * 13) % 5) as f64;
+        }
+        let rows = |f: fn((f64, f64, f64)) -> f64| -> Vec<f64> {
+            t.iter()
+                .flat_map(|&tk| [f(sines(tk)), 0.5 * f(sines(1.3 * tk + 0.2))])
+                .collect()
+        };
+        let (q, dq) = (rows(|s| s.0), rows(|s| s.1));
+        let mut worst = 0.0f64;
+        for method in [Method::Butterworth, Method::SavitzkyGolay] {
+            for with_dq in [false, true] {
+                let raw = Raw {
+                    t: &t,
+                    dof: 2,
+                    q: &q,
+                    dq: with_dq.then_some(dq.as_slice()),
+                    ddq: None,
+                };
+                let opts = Options {
+                    method,
+                    cutoff_hz: Some(6.0),
+                };
+                let e = Estimator::new(raw, &opts).unwrap();
+                let n = e.grid.n;
+                let whole = e.window(raw, 0, n);
+                for (lo, hi) in [(0, 700), (1234, 4321), (4000, n), (n - 1, n)] {
+                    let w = e.window(raw, lo, hi);
+                    assert_eq!((w.lo, w.q[1].len()), (lo, hi - lo));
+                    let pairs = [(&w.q, &whole.q), (&w.dq, &whole.dq), (&w.ddq, &whole.ddq)];
+                    for (c, (a, b)) in pairs.into_iter().enumerate() {
+                        for j in 0..2 {
+                            let scale = b[j].iter().fold(0.0f64, |m, v| m.max(v.abs()));
+                            let d = (lo..hi)
+                                .map(|k| (a[j][k - lo] - b[j][k]).abs())
+                                .fold(0.0, f64::max);
+                            assert!(
+                                d <= 1e-6 * scale,
+                                "{method:?} dq {with_dq} [{lo},{hi}) j{j} channel {c}: {d} of {scale}"
+                            );
+                            worst = worst.max(d / scale);
+                        }
+                    }
+                }
+            }
+        }
+        println!("largest window/whole difference: {worst:.1e} of the channel's range");
     }
 
     #[test]

@@ -2,7 +2,8 @@
 //! effect loop (see [`crate::effects`]) and everything a report needs.
 //!
 //! Pipeline of [`run`] (every step is reported):
-//! 1. **Derivatives** per file ([`crate::derivative::estimate`]): uneven sampling is resampled to
+//! 1. **Derivatives** per file ([`crate::derivative::Estimator`], run window by window as each
+//!    pass needs them, so no copy of a long log's states is held): uneven sampling is resampled to
 //!    a uniform grid, q is low-passed with a zero-phase filter whose cut-off is chosen from the
 //!    spectrum, q̇/q̈ come from central differences (a q̇ column in the file is used, filtered,
 //!    and differentiated for q̈). Files with both q̇ and q̈ are used as given.
@@ -45,7 +46,7 @@ use serde::Serialize;
 
 use crate::arms::ArmSource;
 use crate::data::Trajectory;
-use crate::derivative::{self, Butterworth, DerivativeReport, Estimate, Filter, SavGol};
+use crate::derivative::{self, Butterworth, DerivativeReport, Estimator, Filter, SavGol, States};
 use crate::effects::{self, Effect, EffectsSpec, Rules, Scales, Selection, Term};
 use base::BaseModel;
 use ls::Accumulator;
@@ -137,7 +138,11 @@ impl Default for Config {
 pub struct Prepared {
     pub name: String,
     pub traj: Arc<Trajectory>,
-    pub est: Estimate,
+    /// The file's estimator: states are estimated window by window when needed
+    /// ([`Prepared::states`]), never held for the whole log.
+    pub est: Estimator,
+    /// Whether a q̇ column of the file is used (filtered).
+    file_velocity: bool,
     /// Grid samples used for the regression (filter edges dropped).
     pub keep: (usize, usize),
     /// Raw samples used for errors and predictions.
@@ -244,12 +249,6 @@ impl Prepared {
         }
         traj.require_samples(MIN_SAMPLES, "identification")?;
         let n = traj.len();
-        let col = |v: &Vec<f64>, j: usize| -> Vec<f64> { (0..n).map(|k| v[k * dof + j]).collect() };
-        let q: Vec<Vec<f64>> = (0..dof).map(|j| col(&traj.q, j)).collect();
-        let dq: Option<Vec<Vec<f64>>> = traj
-            .dq
-            .as_ref()
-            .map(|d| (0..dof).map(|j| col(d, j)).collect());
         let derr = |source| IdentifyError::Derivative {
             file: name.clone(),
             source,
@@ -258,21 +257,7 @@ impl Prepared {
             cutoff_hz: fc,
             ..cfg.derivative
         };
-        let est = match (&traj.dq, &traj.ddq) {
-            (Some(d), Some(dd)) => {
-                let dq = (0..dof).map(|j| col(d, j)).collect::<Vec<_>>();
-                let ddq = (0..dof).map(|j| col(dd, j)).collect::<Vec<_>>();
-                given_derivatives(&traj.t, q, dq, ddq, &opts).map_err(derr)?
-            }
-            _ => {
-                let dq_in = if cfg.file_velocity {
-                    dq.as_deref()
-                } else {
-                    None
-                };
-                derivative::estimate(&traj.t, &q, dq_in, &opts).map_err(derr)?
-            }
-        };
+        let est = Estimator::new(raw(&traj, cfg.file_velocity), &opts).map_err(derr)?;
         let g = est.grid;
         let ratio = smoothing.regression_ratio;
         let fr = est.report.cutoff_hz * ratio;
@@ -303,6 +288,7 @@ impl Prepared {
             name,
             traj,
             est,
+            file_velocity: cfg.file_velocity,
             keep,
             raw_keep: (lo, hi.max(lo)),
             rfilter,
@@ -326,64 +312,40 @@ impl Prepared {
     pub fn dof(&self) -> usize {
         self.traj.dof
     }
+
+    /// Estimated states on grid samples `lo..hi`.
+    pub fn states(&self, lo: usize, hi: usize) -> derivative::States {
+        self.est.window(raw(&self.traj, self.file_velocity), lo, hi)
+    }
+
+    /// `(Σ f(states, i), count)` over the kept grid samples, window by window.
+    fn state_sums(&self, f: impl Fn(&States, usize) -> f64) -> (f64, usize) {
+        let mut s = 0.0;
+        for (a, b) in cores(self, self.keep.0, self.keep.1) {
+            let st = self.states(a, b);
+            s += (0..b - a).map(|i| f(&st, i)).sum::<f64>();
+        }
+        (s, self.keep.1 - self.keep.0)
+    }
+
+    /// Measured torque on grid samples `lo..hi` (`tau[j][k - lo]`).
+    fn grid_tau(&self, lo: usize, hi: usize) -> Vec<Vec<f64>> {
+        let tau = self.traj.tau.as_deref().unwrap_or(&[]);
+        self.est.on_grid(&self.traj.t, tau, self.dof(), lo, hi)
+    }
 }
 
-/// Derivatives given in the file: used as they are (resampled if the grid is uneven); the
-/// filter is still built (for parallel filtering of τ and the columns).
-fn given_derivatives(
-    t: &[f64],
-    q: Vec<Vec<f64>>,
-    dq: Vec<Vec<f64>>,
-    ddq: Vec<Vec<f64>>,
-    opts: &derivative::Options,
-) -> Result<Estimate, derivative::DerivativeError> {
-    let sampling = derivative::Sampling::of(t)?;
-    let grid = derivative::grid_for(t, &sampling);
-    let fs = 1.0 / grid.dt;
-    let on = |x: &Vec<f64>| {
-        if sampling.uniform {
-            x.clone()
-        } else {
-            derivative::resample_linear(t, x, &grid)
-        }
-    };
-    let (q, dq, ddq): (Vec<_>, Vec<_>, Vec<_>) = (
-        q.iter().map(on).collect(),
-        dq.iter().map(on).collect(),
-        ddq.iter().map(on).collect(),
-    );
-    let (fc, per, auto) = match opts.cutoff_hz {
-        Some(f) => (f, Vec::new(), false),
-        None => {
-            let refs: Vec<&[f64]> = q.iter().map(|c| c.as_slice()).collect();
-            let (f, p) = derivative::auto_cutoff(&refs, fs);
-            (f, p, true)
-        }
-    };
-    let filter = match opts.method {
-        derivative::Method::Butterworth => Filter::Butterworth(Butterworth::lowpass(4, fc, fs)?),
-        derivative::Method::SavitzkyGolay => Filter::SavGol(SavGol::matched(fc, fs)?),
-    };
-    let report = DerivativeReport {
-        method: opts.method,
-        filter: filter.as_zero_phase().describe(),
-        cutoff_hz: fc,
-        cutoff_auto: auto,
-        per_channel: per,
-        sampling,
-        resampled: !sampling.uniform,
-        dq_source: "file (as given)".into(),
-        ddq_source: "file (as given)".into(),
-        fs_hz: fs,
-    };
-    Ok(Estimate {
-        grid,
-        q,
-        dq,
-        ddq,
-        filter,
-        report,
-    })
+/// The raw samples of `t` the estimator reads: a q̇ column only if `file_velocity` (or if q̈ is
+/// given too: then both are used as given).
+fn raw(t: &Trajectory, file_velocity: bool) -> derivative::Raw<'_> {
+    let given = t.dq.is_some() && t.ddq.is_some();
+    derivative::Raw {
+        t: &t.t,
+        dof: t.dof,
+        q: &t.q,
+        dq: t.dq.as_deref().filter(|_| file_velocity || given),
+        ddq: t.ddq.as_deref().filter(|_| given),
+    }
 }
 
 /// Which columns the regression has: base parameters, then effect terms.
@@ -464,11 +426,11 @@ impl<'a> Rows<'a> {
         }
     }
 
-    /// Rows at grid sample `k` of `p`'s estimated states.
-    fn fill_grid(&mut self, p: &Prepared, k: usize, out: &mut [f64]) {
-        let e = &p.est;
+    /// Rows at grid sample `k` of estimated states `st`.
+    fn fill_grid(&mut self, st: &States, k: usize, out: &mut [f64]) {
+        let i = k - st.lo;
         for j in 0..self.layout.dof {
-            (self.q[j], self.dq[j], self.ddq[j]) = (e.q[j][k], e.dq[j][k], e.ddq[j][k]);
+            (self.q[j], self.dq[j], self.ddq[j]) = (st.q[j][i], st.dq[j][i], st.ddq[j][i]);
         }
         let (q, dq, ddq) = (
             std::mem::take(&mut self.q),
@@ -512,30 +474,26 @@ struct Chunk {
 }
 
 impl Chunk {
-    /// Unfiltered rows and the measured τ on the grid (`tau[j][k]`) around the core `a..b`.
-    fn new(
-        p: &Prepared,
-        rows: &mut Rows,
-        active: &[Vec<usize>],
-        (a, b): (usize, usize),
-        tau: &[Vec<f64>],
-    ) -> Chunk {
+    /// Unfiltered rows and the measured τ on the grid around the core `a..b`.
+    fn new(p: &Prepared, rows: &mut Rows, active: &[Vec<usize>], (a, b): (usize, usize)) -> Chunk {
         let (n, nc) = (rows.layout.dof, rows.layout.ncols());
         let reach = p.rfilter.as_zero_phase().reach();
         let (lo, hi) = (a.saturating_sub(reach), (b + reach).min(p.est.grid.n));
         let w = hi - lo;
+        let st = p.states(lo, hi);
+        let tau = p.grid_tau(lo, hi);
         let mut cols: Vec<Vec<f64>> = active
             .iter()
             .map(|a| vec![0.0; (a.len() + 1) * w])
             .collect();
         let mut buf = vec![0.0; n * nc];
         for k in lo..hi {
-            rows.fill_grid(p, k, &mut buf);
+            rows.fill_grid(&st, k, &mut buf);
             for j in 0..n {
                 for (l, &c) in active[j].iter().enumerate() {
                     cols[j][l * w + (k - lo)] = buf[j * nc + c];
                 }
-                cols[j][active[j].len() * w + (k - lo)] = tau[j][k];
+                cols[j][active[j].len() * w + (k - lo)] = tau[j][k - lo];
             }
         }
         Chunk { lo, hi, cols }
@@ -584,11 +542,10 @@ fn accumulate_fit(
         .map(|a| vec![a; nblocks])
         .collect();
     let active: Vec<Vec<usize>> = (0..n).map(|j| layout.active(j)).collect();
-    let tau = grid_tau(p);
     let mut rows = Rows::new(base, layout);
     let (k0, k1) = p.keep;
     for (a, b) in cores(p, k0, k1) {
-        let mut chunk = Chunk::new(p, &mut rows, &active, (a, b), &tau);
+        let mut chunk = Chunk::new(p, &mut rows, &active, (a, b));
         let (lo, hi, w) = (chunk.lo, chunk.hi, chunk.w());
         let keep: Vec<(usize, usize)> = (a..b)
             .filter(|&k| (k - k0) % decim == 0)
@@ -624,22 +581,6 @@ fn finish_transposed(accs: Vec<Vec<Accumulator>>, nblocks: usize) -> Vec<Vec<Acc
         }
     }
     out
-}
-
-/// Measured torque on the file's uniform grid (resampled linearly if the sampling is uneven).
-fn grid_tau(p: &Prepared) -> Vec<Vec<f64>> {
-    let (n, len) = (p.dof(), p.traj.len());
-    let tau = p.traj.tau.as_deref().unwrap_or(&[]);
-    (0..n)
-        .map(|j| {
-            let x: Vec<f64> = (0..len).map(|k| tau[k * n + j]).collect();
-            if p.est.report.resampled {
-                derivative::resample_linear(&p.traj.t, &x, &p.est.grid)
-            } else {
-                x
-            }
-        })
-        .collect()
 }
 
 /// Where raw sample `r` lies on the grid: `(k, s)`, at `(1 − s)·k + s·(k + 1)`.
@@ -684,6 +625,8 @@ fn raw_cores(p: &Prepared) -> Vec<(usize, usize)> {
 struct Predicted {
     lo: usize,
     pred: Vec<Vec<Vec<f64>>>,
+    /// The window's estimated states.
+    states: States,
 }
 
 impl Predicted {
@@ -712,8 +655,9 @@ impl Predicted {
             .collect();
         let mut buf = vec![0.0; n * nc];
         let mut row: Vec<Vec<f64>> = active.iter().map(|a| vec![0.0; a.len()]).collect();
+        let states = p.states(lo, hi);
         for k in lo..hi {
-            rows.fill_grid(p, k, &mut buf);
+            rows.fill_grid(&states, k, &mut buf);
             for (j, rj) in row.iter_mut().enumerate() {
                 for (v, &c) in rj.iter_mut().zip(&active[j]) {
                     *v = buf[j * nc + c];
@@ -735,7 +679,7 @@ impl Predicted {
                 .as_zero_phase()
                 .apply_many(&mut chans, lo == 0, hi == g.n);
         }
-        Predicted { lo, pred }
+        Predicted { lo, pred, states }
     }
 
     /// Set `c`'s prediction for joint `j` at grid position `(k, s)` (see [`grid_pos`]).
@@ -1542,13 +1486,10 @@ fn make_layout(
     let n = base.dof();
     let scales: Vec<Scales> = (0..n)
         .map(|j| {
-            let (mut s, mut c) = (0.0, 0usize);
-            for p in train {
-                for k in p.keep.0..p.keep.1 {
-                    s += p.est.dq[j][k].powi(2);
-                    c += 1;
-                }
-            }
+            let (s, c) = train.iter().fold((0.0, 0usize), |(s, c), p| {
+                let (s1, c1) = p.state_sums(|st, i| st.dq[j][i].powi(2));
+                (s + s1, c + c1)
+            });
             Scales::from_rms_velocity((s / c.max(1) as f64).sqrt())
         })
         .collect();
@@ -1829,9 +1770,10 @@ fn with_hint(mut e: RankError, train: &[Prepared]) -> RankError {
     for j in 0..p0.dof() {
         let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
         for p in train {
-            for k in p.keep.0..p.keep.1 {
-                lo = lo.min(p.est.q[j][k]);
-                hi = hi.max(p.est.q[j][k]);
+            for (a, b) in cores(p, p.keep.0, p.keep.1) {
+                for q in p.states(a, b).q[j].iter() {
+                    (lo, hi) = (lo.min(*q), hi.max(*q));
+                }
             }
         }
         if hi - lo < 1e-3 {
@@ -1878,11 +1820,11 @@ fn for_predictions(
         for r in raw_in_core(p, core, stride) {
             let (k, s) = grid_pos(p, r);
             for j in 0..n {
-                let d = &p.est.dq[j];
+                let (d, i) = (&pc.states.dq[j], k - pc.lo);
                 dq[j] = if s > 0.0 {
-                    d[k] + s * (d[k + 1] - d[k])
+                    d[i] + s * (d[i + 1] - d[i])
                 } else {
-                    d[k]
+                    d[i]
                 };
                 pb[j] = pc.at(0, j, (k, s));
                 pa[j] = pc.at(1, j, (k, s));
