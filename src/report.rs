@@ -408,7 +408,16 @@ pub fn markdown(o: &Outcome, command: &str, plots: &[String]) -> String {
         } else {
             String::new()
         };
-        let _ = writeln!(m, "\nCut-off, regression filter and prediction chosen automatically: smallest held-out error against the measured torque over the scan (rigid body + all candidate effects{scope}):\n");
+        let fixed_fc = o
+            .cutoff_scan
+            .iter()
+            .all(|c| c.cutoff_hz == o.cutoff_scan[0].cutoff_hz);
+        let what = if fixed_fc {
+            "Regression filter and prediction chosen automatically (one cut-off)"
+        } else {
+            "Cut-off, regression filter and prediction chosen automatically"
+        };
+        let _ = writeln!(m, "\n{what}: smallest held-out error against the measured torque over the scan (rigid body + all candidate effects{scope}):\n");
         let _ = writeln!(
             m,
             "| cut-off (Hz) | regression filter | prediction | held-out error |"
