@@ -176,6 +176,13 @@ fn print_summary(o: &Outcome) {
     };
     show("before (rigid)", &o.before);
     show("after", &o.after);
+    if let Some(f) = o.train.first() {
+        println!(
+            "filters: cut-off {:.2} Hz, {}",
+            f.derivative.cutoff_hz,
+            f.smoothing.label()
+        );
+    }
 }
 
 fn write_loo(dir: &Path, outs: &[Outcome], command: &str) -> Result<()> {
