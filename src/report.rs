@@ -13,12 +13,13 @@
 //! …), `selection`, `condition_number`, `cutoff_scan`, `command`.
 
 use std::fmt::Write as _;
+use std::io::Write as _;
 use std::path::{Path, PathBuf};
 
 use plotters::prelude::*;
 use serde_json::{json, Value};
 
-use crate::identify::{Errors, Outcome};
+use crate::identify::{Errors, Outcome, Predictions};
 use crate::io::{atomic_write, WriteError};
 
 /// Why a report could not be written.
@@ -66,9 +67,6 @@ pub fn write(dir: &Path, o: &Outcome, command: &str) -> Result<Vec<PathBuf>, Rep
     let json = serde_json::to_string_pretty(&json_report(o, command))
         .unwrap_or_else(|e| format!("{{\"error\": \"{e}\"}}"));
     files.push(("report.json".into(), json.into_bytes()));
-    if let Some(csv) = prediction_csv(o) {
-        files.push(("validation_prediction.csv".into(), csv.into_bytes()));
-    }
     files.push((
         "report.md".into(),
         markdown(o, command, &plots).into_bytes(),
@@ -82,6 +80,11 @@ pub fn write(dir: &Path, o: &Outcome, command: &str) -> Result<Vec<PathBuf>, Rep
     for (name, bytes) in files {
         let path = dir.join(name);
         atomic_write(&path, |w| w.write_all(&bytes))?;
+        written.push(path);
+    }
+    if let Some(p) = &o.predictions {
+        let path = dir.join("validation_prediction.csv");
+        atomic_write(&path, |w| prediction_csv(p, w))?;
         written.push(path);
     }
     Ok(written)
@@ -150,27 +153,29 @@ pub fn json_report(o: &Outcome, command: &str) -> Value {
     })
 }
 
-fn prediction_csv(o: &Outcome) -> Option<String> {
-    let rows = o.predictions.as_ref()?;
-    let n = o.dof;
-    let mut s = String::with_capacity(rows.len() * 16 * (3 * n + 1));
-    s.push('t');
+/// Streams `validation_prediction.csv` (rows as many as the validation samples used, so it is
+/// written straight to the file rather than rendered first).
+fn prediction_csv(p: &Predictions, w: &mut dyn std::io::Write) -> std::io::Result<()> {
+    let n = p.dof;
+    let mut w = std::io::BufWriter::new(w);
+    write!(w, "t")?;
     for prefix in ["tau", "before", "after"] {
         for j in 1..=n {
-            let _ = write!(s, ",{prefix}{j}");
+            write!(w, ",{prefix}{j}")?;
         }
     }
-    s.push('\n');
-    for r in rows {
+    writeln!(w)?;
+    for i in 0..p.len() {
         // `{}` prints the shortest representation that parses back to the same f64, so t and tau
         // are the values read from the validation file.
-        let _ = write!(s, "{}", r.t);
-        for v in r.tau.iter().chain(&r.before).chain(&r.after) {
-            let _ = write!(s, ",{v}");
+        write!(w, "{}", p.t[i])?;
+        let (tau, before, after) = p.row(i);
+        for v in tau.iter().chain(before).chain(after) {
+            write!(w, ",{v}")?;
         }
-        s.push('\n');
+        writeln!(w)?;
     }
-    Some(s)
+    w.flush()
 }
 
 /// What a model's prediction is computed from (see [`crate::identify::Smoothing`]).

@@ -1175,13 +1175,31 @@ pub struct Series {
     pub validation: Vec<Vec<(f64, f64, f64, f64)>>,
 }
 
-/// One row of `validation_prediction.csv`.
-#[derive(Debug, Clone)]
-pub struct PredictionRow {
-    pub t: f64,
-    pub tau: Vec<f64>,
-    pub before: Vec<f64>,
-    pub after: Vec<f64>,
+/// The rows of `validation_prediction.csv`, stored flat (a long validation log costs 3n + 1
+/// doubles a sample): per validation sample used, its time, then the measured τ and the torques
+/// predicted by the declared (`before`) and augmented (`after`) models, n each.
+#[derive(Debug, Clone, Default)]
+pub struct Predictions {
+    pub dof: usize,
+    pub t: Vec<f64>,
+    values: Vec<f64>,
+}
+
+impl Predictions {
+    pub fn len(&self) -> usize {
+        self.t.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.t.is_empty()
+    }
+
+    /// Row `i`: `(tau, before, after)`.
+    pub fn row(&self, i: usize) -> (&[f64], &[f64], &[f64]) {
+        let n = self.dof;
+        let v = &self.values[i * 3 * n..(i + 1) * 3 * n];
+        (&v[..n], &v[n..2 * n], &v[2 * n..])
+    }
 }
 
 /// A row of the rigid → +effect → … table.
@@ -1221,7 +1239,7 @@ pub struct Outcome {
     #[serde(skip)]
     pub series: Series,
     #[serde(skip)]
-    pub predictions: Option<Vec<PredictionRow>>,
+    pub predictions: Option<Predictions>,
 }
 
 /// Identifies `arm` from `train` files, validating on `validate` if given (see the module docs).
@@ -1889,15 +1907,16 @@ fn predictions(
     p: &Prepared,
     before: &ModelResult,
     after: &ModelResult,
-) -> Vec<PredictionRow> {
-    let mut out = Vec::with_capacity(p.raw_keep.1 - p.raw_keep.0);
+) -> Predictions {
+    let (n, rows) = (layout.dof, p.raw_keep.1 - p.raw_keep.0);
+    let mut out = Predictions {
+        dof: n,
+        t: Vec::with_capacity(rows),
+        values: Vec::with_capacity(rows * 3 * n),
+    };
     for_predictions(base, layout, p, [before, after], 1, |r, _, tau, pb, pa| {
-        out.push(PredictionRow {
-            t: p.traj.t[r],
-            tau: tau.to_vec(),
-            before: pb.to_vec(),
-            after: pa.to_vec(),
-        });
+        out.t.push(p.traj.t[r]);
+        out.values.extend(tau.iter().chain(pb).chain(pa));
     });
     out
 }
@@ -1949,11 +1968,12 @@ pub fn pooled_validation(outcomes: &[Outcome]) -> Option<(Errors, Errors)> {
     let mut tss = vec![0.0; n];
     for o in outcomes {
         let p = o.predictions.as_ref()?;
-        for r in p {
+        for i in 0..p.len() {
+            let (tau, before, after) = p.row(i);
             for j in 0..n {
-                acc[0][j] += (r.before[j] - r.tau[j]).powi(2);
-                acc[1][j] += (r.after[j] - r.tau[j]).powi(2);
-                tss[j] += r.tau[j].powi(2);
+                acc[0][j] += (before[j] - tau[j]).powi(2);
+                acc[1][j] += (after[j] - tau[j]).powi(2);
+                tss[j] += tau[j].powi(2);
             }
         }
     }
