@@ -976,6 +976,15 @@ pub enum Filter {
 }
 
 impl Filter {
+    /// The low-pass of `method` at `fc` (−6 dB): the 4th-order Butterworth or the matched
+    /// Savitzky–Golay.
+    pub fn lowpass(method: Method, fc: f64, fs: f64) -> Result<Self, DerivativeError> {
+        Ok(match method {
+            Method::Butterworth => Filter::Butterworth(Butterworth::lowpass(4, fc, fs)?),
+            Method::SavitzkyGolay => Filter::SavGol(SavGol::matched(fc, fs)?),
+        })
+    }
+
     pub fn as_zero_phase(&self) -> &(dyn ZeroPhase + Sync) {
         match self {
             Filter::Butterworth(b) => b,
@@ -1120,10 +1129,7 @@ impl Estimator {
                 (fc, per, true)
             }
         };
-        let filter = match opts.method {
-            Method::Butterworth => Filter::Butterworth(Butterworth::lowpass(4, fc, fs)?),
-            Method::SavitzkyGolay => Filter::SavGol(SavGol::matched(fc, fs)?),
-        };
+        let filter = Filter::lowpass(opts.method, fc, fs)?;
         let (dq_source, ddq_source) = match (raw.dq.is_some(), given) {
             (_, true) => ("file (as given)", "file (as given)"),
             (true, false) => ("file, filtered", "differentiated filtered dq"),

@@ -178,15 +178,6 @@ fn prediction_csv(p: &Predictions, w: &mut dyn std::io::Write) -> std::io::Resul
     w.flush()
 }
 
-/// What a model's prediction is computed from (see [`crate::identify::Smoothing`]).
-fn prediction_name(s: &crate::identify::Smoothing) -> &'static str {
-    if s.filtered_prediction {
-        "filtered rows"
-    } else {
-        "states"
-    }
-}
-
 fn pct(v: f64) -> String {
     if v.is_finite() {
         format!("{:.2} %", 100.0 * v)
@@ -434,7 +425,7 @@ pub fn markdown(o: &Outcome, command: &str, plots: &[String]) -> String {
                 "| {:.2} | {}·fc | {} | {} |",
                 c.cutoff_hz,
                 c.smoothing.regression_ratio,
-                prediction_name(&c.smoothing),
+                c.smoothing.prediction_source(),
                 pct(c.heldout_error)
             );
         }

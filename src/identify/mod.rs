@@ -46,7 +46,7 @@ use serde::Serialize;
 
 use crate::arms::ArmSource;
 use crate::data::Trajectory;
-use crate::derivative::{self, Butterworth, DerivativeReport, Estimator, Filter, SavGol, States};
+use crate::derivative::{self, DerivativeReport, Estimator, Filter, States};
 use crate::effects::{self, Effect, EffectsSpec, Rules, Scales, Selection, Term};
 use base::BaseModel;
 use ls::Accumulator;
@@ -209,16 +209,21 @@ impl Smoothing {
         })
     }
 
-    /// Short label for reports, e.g. `regression filter at 0.5·fc, filtered prediction`.
+    /// What a prediction is computed from: `states` or `filtered rows`.
+    pub fn prediction_source(&self) -> &'static str {
+        if self.filtered_prediction {
+            "filtered rows"
+        } else {
+            "states"
+        }
+    }
+
+    /// Short label for reports, e.g. `regression filter at 0.5·fc, prediction from filtered rows`.
     pub fn label(&self) -> String {
         format!(
-            "regression filter at {}·fc, {} prediction",
+            "regression filter at {}·fc, prediction from {}",
             self.regression_ratio,
-            if self.filtered_prediction {
-                "filtered"
-            } else {
-                "state"
-            }
+            self.prediction_source()
         )
     }
 }
@@ -264,15 +269,7 @@ impl Prepared {
         let rfilter = if ratio == 1.0 {
             est.filter.clone()
         } else {
-            let fs = est.report.fs_hz;
-            match cfg.derivative.method {
-                derivative::Method::Butterworth => {
-                    Filter::Butterworth(Butterworth::lowpass(4, fr, fs).map_err(derr)?)
-                }
-                derivative::Method::SavitzkyGolay => {
-                    Filter::SavGol(SavGol::matched(fr, fs).map_err(derr)?)
-                }
-            }
+            Filter::lowpass(cfg.derivative.method, fr, est.report.fs_hz).map_err(derr)?
         };
         let efc = edge_fc.unwrap_or(fr).min(fr);
         let edge = ((0.5 / efc / g.dt).ceil() as usize).min(g.n / 40);
@@ -791,33 +788,19 @@ pub fn raw_sums(
     let mut offset = 0;
     for (fi, p) in files.iter().enumerate() {
         let nblocks = blocks.map_or(1, |b| b[fi]);
-        // `[model][full?, then block][joint][active column]`.
-        let coef: Vec<Vec<Vec<Vec<f64>>>> = models
-            .iter()
-            .map(|m| {
-                let mut v = Vec::new();
-                if let Some(x) = m.x {
-                    v.push((0..n).map(|j| spread(&active[j], m.subset, x)).collect());
-                }
-                if let Some(loo) = m.loo {
-                    for b in 0..nblocks {
-                        v.push(
-                            (0..n)
-                                .map(|j| spread(&active[j], m.subset, &loo[offset + b]))
-                                .collect(),
-                        );
-                    }
-                }
-                v
-            })
-            .collect();
         let tau = p.traj.tau.as_deref().unwrap_or(&[]);
-        // Coefficient sets in one list: `sets[base[m] + i]`, `i` = full (if any), then blocks.
-        let mut sets: Vec<Vec<Vec<f64>>> = Vec::new();
-        let mut first_set = Vec::new();
-        for c in &coef {
+        // Coefficient sets `[set][joint][active column]`: model m's full-data parameters (if
+        // any) at `first_set[m]`, then its leave-one-block-out ones, block by block.
+        let (mut sets, mut first_set) = (Vec::new(), Vec::new());
+        for m in models {
             first_set.push(sets.len());
-            sets.extend(c.iter().cloned());
+            let per_joint = |x: &[f64]| -> Vec<Vec<f64>> {
+                (0..n).map(|j| spread(&active[j], m.subset, x)).collect()
+            };
+            sets.extend(m.x.map(per_joint));
+            if let Some(loo) = m.loo {
+                sets.extend((0..nblocks).map(|b| per_joint(&loo[offset + b])));
+            }
         }
         let parts: Vec<RawSums> = raw_cores(p)
             .par_iter()
