@@ -322,16 +322,75 @@ impl Columns {
 
 const GZIP_MAGIC: [u8; 2] = [0x1f, 0x8b];
 
+/// Opens `path` for reading, an error naming it if that fails.
+pub fn open(path: &Path) -> Result<std::fs::File, DataError> {
+    std::fs::File::open(path).map_err(|e| DataError {
+        loc: Location::file(path.display().to_string()),
+        kind: Box::new(DataErrorKind::Io(e)),
+    })
+}
+
+/// Which blocks a file's rows carry. [`read_rows`] hands every row over in the canonical order
+/// `t, q1..qn, [dq1..dqn], [ddq1..ddqn], [tau1..taun]`, whatever the file's column order.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RowLayout {
+    pub dof: usize,
+    pub dq: bool,
+    pub ddq: bool,
+    pub tau: bool,
+}
+
+impl RowLayout {
+    /// Values per row.
+    pub fn width(&self) -> usize {
+        1 + self.dof * (1 + usize::from(self.dq) + usize::from(self.ddq) + usize::from(self.tau))
+    }
+}
+
+/// Streams a CSV (or gzip-compressed CSV) source row by row into `sink`, checking every cell as
+/// [`Trajectory::from_reader`] does; returns the layout and the number of rows. Nothing but the
+/// current row is held, so a log of any length reads in constant memory. `sink` errors (e.g. a
+/// full disk) are reported as I/O errors of `origin`.
+pub fn read_rows<R: Read>(
+    reader: R,
+    origin: &str,
+    dof: Option<usize>,
+    sink: &mut dyn FnMut(&RowLayout, &[f64]) -> std::io::Result<()>,
+) -> Result<(RowLayout, usize), DataError> {
+    let io_err = |e| DataError {
+        loc: Location::file(origin),
+        kind: Box::new(DataErrorKind::Io(e)),
+    };
+    let mut buf = BufReader::new(reader);
+    let head = buf.fill_buf().map_err(io_err)?;
+    if !head.starts_with(&GZIP_MAGIC) {
+        return parse(buf, origin, dof, false, sink);
+    }
+    let mut gz = flate2::bufread::MultiGzDecoder::new(buf);
+    let gzip_err = |e| DataError {
+        loc: Location::file(origin),
+        kind: Box::new(DataErrorKind::Gzip(e)),
+    };
+    match parse(&mut gz, origin, dof, true, sink) {
+        Ok(r) => Ok(r),
+        // A corrupt stream may decode to garbage before its checksum fails at the end: report
+        // it as corrupt, not as whatever the garbage looked like.
+        Err(e) if !matches!(*e.kind, DataErrorKind::Gzip(_)) => {
+            match std::io::copy(&mut gz, &mut std::io::sink()) {
+                Err(g) => Err(gzip_err(g)),
+                Ok(_) => Err(e),
+            }
+        }
+        Err(e) => Err(e),
+    }
+}
+
 impl Trajectory {
     /// Reads a CSV (or gzip-compressed CSV) file. With `dof = Some(n)` the header must match an
     /// `n`-joint arm; with `None` the DOF is taken from the `q` columns.
     pub fn from_path(path: &Path, dof: Option<usize>) -> Result<Self, DataError> {
         let file = path.display().to_string();
-        let f = std::fs::File::open(path).map_err(|e| DataError {
-            loc: Location::file(&file),
-            kind: Box::new(DataErrorKind::Io(e)),
-        })?;
-        Self::from_reader(f, &file, dof)
+        Self::from_reader(open(path)?, &file, dof)
     }
 
     /// Reads CSV (or gzip-compressed CSV) from any reader; `origin` names it in errors.
@@ -340,24 +399,42 @@ impl Trajectory {
         origin: &str,
         dof: Option<usize>,
     ) -> Result<Self, DataError> {
-        let mut buf = BufReader::new(reader);
-        let head = buf.fill_buf().map_err(|e| DataError {
-            loc: Location::file(origin),
-            kind: Box::new(DataErrorKind::Io(e)),
+        let mut t = Vec::new();
+        let mut blocks: [Option<Vec<f64>>; 4] = Default::default();
+        let (layout, _) = read_rows(reader, origin, dof, &mut |l, row| {
+            let n = l.dof;
+            if t.is_empty() {
+                let present = [true, l.dq, l.ddq, l.tau];
+                for (b, p) in blocks.iter_mut().zip(present) {
+                    *b = p.then(Vec::new);
+                }
+            }
+            t.push(row[0]);
+            for (i, b) in blocks.iter_mut().flatten().enumerate() {
+                b.extend_from_slice(&row[1 + i * n..1 + (i + 1) * n]);
+            }
+            Ok(())
         })?;
-        if !head.starts_with(&GZIP_MAGIC) {
-            return parse(buf, origin, dof);
+        let [q, dq, ddq, tau] = blocks;
+        Ok(Trajectory {
+            source: origin.to_string(),
+            dof: layout.dof,
+            t,
+            q: q.unwrap_or_default(),
+            dq,
+            ddq,
+            tau,
+        })
+    }
+
+    /// The blocks this trajectory has.
+    pub fn layout(&self) -> RowLayout {
+        RowLayout {
+            dof: self.dof,
+            dq: self.dq.is_some(),
+            ddq: self.ddq.is_some(),
+            tau: self.tau.is_some(),
         }
-        // Decompress fully first: a corrupt stream is then reported as corrupt (the CRC is
-        // checked at its end) rather than as whatever garbage it decodes to.
-        let mut bytes = Vec::new();
-        flate2::bufread::MultiGzDecoder::new(buf)
-            .read_to_end(&mut bytes)
-            .map_err(|e| DataError {
-                loc: Location::file(origin),
-                kind: Box::new(DataErrorKind::Gzip(e)),
-            })?;
-        parse(bytes.as_slice(), origin, dof)
     }
 
     /// Number of samples.
@@ -500,7 +577,13 @@ pub fn write_row(w: &mut dyn Write, values: &[f64]) -> std::io::Result<()> {
     w.write_all(b"\n")
 }
 
-fn parse<R: Read>(reader: R, file: &str, want_dof: Option<usize>) -> Result<Trajectory, DataError> {
+fn parse<R: Read>(
+    reader: R,
+    file: &str,
+    want_dof: Option<usize>,
+    gzip: bool,
+    sink: &mut dyn FnMut(&RowLayout, &[f64]) -> std::io::Result<()>,
+) -> Result<(RowLayout, usize), DataError> {
     let mut rdr = csv::ReaderBuilder::new()
         .has_headers(false)
         .flexible(true)
@@ -518,6 +601,13 @@ fn parse<R: Read>(reader: R, file: &str, want_dof: Option<usize>) -> Result<Traj
             field: None,
         };
         let kind = match e.into_kind() {
+            // The decoder's errors arrive as read errors: the stream is corrupt.
+            csv::ErrorKind::Io(io) if gzip => {
+                return DataError {
+                    loc: Location::file(file),
+                    kind: Box::new(DataErrorKind::Gzip(io)),
+                }
+            }
             csv::ErrorKind::Io(io) => DataErrorKind::Io(io),
             csv::ErrorKind::Utf8 { err, .. } => DataErrorKind::NotANumber {
                 cell: format!("invalid UTF-8 ({err})"),
@@ -560,9 +650,19 @@ fn parse<R: Read>(reader: R, file: &str, want_dof: Option<usize>) -> Result<Traj
     let dof = cols.dof;
     let ncols = cols.names.len();
 
-    let mut t = Vec::new();
-    let mut blocks: [Option<Vec<f64>>; 4] =
-        std::array::from_fn(|b| cols.blocks[b].as_ref().map(|_| Vec::new()));
+    let layout = RowLayout {
+        dof,
+        dq: cols.blocks[Block::Dq as usize].is_some(),
+        ddq: cols.blocks[Block::Ddq as usize].is_some(),
+        tau: cols.blocks[Block::Tau as usize].is_some(),
+    };
+    // File columns in the canonical row order.
+    let order: Vec<usize> = std::iter::once(cols.t)
+        .chain(cols.blocks.iter().flatten().flatten().copied())
+        .collect();
+    let mut row = vec![0.0; layout.width()];
+    let (mut rows, mut prev) = (0usize, f64::NEG_INFINITY);
+
     loop {
         match rdr.read_byte_record(&mut record) {
             Ok(true) => {}
@@ -625,40 +725,29 @@ fn parse<R: Read>(reader: R, file: &str, want_dof: Option<usize>) -> Result<Traj
             }
         };
         let tk = cell(cols.t)?;
-        if let Some(&prev) = t.last() {
-            if tk <= prev {
-                return Err(at(
-                    cols.t,
-                    DataErrorKind::TimeNotIncreasing {
-                        previous: prev,
-                        current: tk,
-                    },
-                ));
-            }
+        if rows > 0 && tk <= prev {
+            return Err(at(
+                cols.t,
+                DataErrorKind::TimeNotIncreasing {
+                    previous: prev,
+                    current: tk,
+                },
+            ));
         }
-        t.push(tk);
-        for (b, idx) in cols.blocks.iter().enumerate() {
-            if let (Some(idx), Some(out)) = (idx, blocks[b].as_mut()) {
-                for &col in idx {
-                    out.push(cell(col)?);
-                }
-            }
+        for (v, &col) in row.iter_mut().zip(&order) {
+            *v = cell(col)?;
         }
+        sink(&layout, &row).map_err(|e| DataError {
+            loc: Location::file(file),
+            kind: Box::new(DataErrorKind::Io(e)),
+        })?;
+        (rows, prev) = (rows + 1, tk);
     }
-    if t.is_empty() {
+    if rows == 0 {
         return Err(DataError {
             loc: Location::file(file),
             kind: Box::new(DataErrorKind::HeaderOnly),
         });
     }
-    let [q, dq, ddq, tau] = blocks;
-    Ok(Trajectory {
-        source: file.to_string(),
-        dof,
-        t,
-        q: q.unwrap_or_default(),
-        dq,
-        ddq,
-        tau,
-    })
+    Ok((layout, rows))
 }

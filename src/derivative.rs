@@ -39,9 +39,13 @@
 //! assert!((x[1000] - orig[1000]).abs() < 1e-6); // 0.16 Hz passes unchanged, no phase lag
 //! ```
 
+use std::borrow::Cow;
 use std::f64::consts::PI;
 
 use serde::Serialize;
+
+use crate::data::Trajectory;
+use crate::log::Log;
 
 /// Fewest samples any estimator accepts.
 pub const MIN_SAMPLES: usize = 32;
@@ -80,39 +84,89 @@ pub struct Sampling {
 impl Sampling {
     /// Checks `t` (finite, strictly increasing, enough samples) and measures its spacing.
     pub fn of(t: &[f64]) -> Result<Self, DerivativeError> {
-        if t.len() < MIN_SAMPLES {
+        Self::measure(t.len(), |a, b| Cow::Borrowed(&t[a..b]))
+    }
+
+    /// [`Sampling::of`] the times of a log, read piece by piece (constant memory).
+    pub fn of_log(log: &Log) -> Result<Self, DerivativeError> {
+        Self::measure(log.len(), |a, b| {
+            let mut t = Vec::with_capacity(b - a);
+            log.rows(a, b, |row| t.push(row[0]));
+            Cow::Owned(t)
+        })
+    }
+
+    /// [`Sampling::of`] for `n` times read in pieces by `times(a, b)` = `t[a..b]`: a few passes
+    /// over the pieces (the median by histogram refinement, exact), nothing of size `n` kept.
+    fn measure<'a>(
+        n: usize,
+        times: impl Fn(usize, usize) -> Cow<'a, [f64]>,
+    ) -> Result<Self, DerivativeError> {
+        if n < MIN_SAMPLES {
             return Err(DerivativeError::TooFewSamples {
-                n: t.len(),
+                n,
                 min: MIN_SAMPLES,
             });
         }
-        if let Some(row) = t.iter().position(|v| !v.is_finite()) {
-            return Err(DerivativeError::NonFinite { channel: 0, row });
-        }
-        let mut dts = Vec::with_capacity(t.len() - 1);
-        for k in 1..t.len() {
-            let dt = t[k] - t[k - 1];
-            if dt <= 0.0 {
-                return Err(DerivativeError::NotIncreasing {
-                    row: k,
-                    t: t[k],
-                    prev: t[k - 1],
+        // Every step dt_k = t[k] − t[k−1], k = 1..n, in order, piece by piece.
+        let steps = |f: &mut dyn FnMut(usize, f64, f64, f64) -> Result<(), DerivativeError>| {
+            let mut prev = f64::NAN;
+            for a in (0..n).step_by(PIECE) {
+                let t = times(a, (a + PIECE).min(n));
+                for (i, &v) in t.iter().enumerate() {
+                    if a + i > 0 {
+                        f(a + i, v - prev, v, prev)?;
+                    }
+                    prev = v;
+                }
+            }
+            Ok(())
+        };
+        let (mut sum, mut dt_min, mut dt_max) = (0.0, f64::INFINITY, 0.0f64);
+        for a in (0..n).step_by(PIECE) {
+            if let Some(i) = times(a, (a + PIECE).min(n))
+                .iter()
+                .position(|v| !v.is_finite())
+            {
+                return Err(DerivativeError::NonFinite {
+                    channel: 0,
+                    row: a + i,
                 });
             }
-            dts.push(dt);
         }
-        let mean = dts.iter().sum::<f64>() / dts.len() as f64;
-        let var = dts.iter().map(|d| (d - mean).powi(2)).sum::<f64>() / dts.len() as f64;
-        let (dt_min, dt_max) = dts
-            .iter()
-            .fold((f64::INFINITY, 0.0f64), |(a, b), &d| (a.min(d), b.max(d)));
-        let dt_median = median(&mut dts);
+        steps(&mut |row, dt, t, prev| {
+            if dt <= 0.0 {
+                return Err(DerivativeError::NotIncreasing { row, t, prev });
+            }
+            sum += dt;
+            (dt_min, dt_max) = (dt_min.min(dt), dt_max.max(dt));
+            Ok(())
+        })?;
+        let m = n - 1;
+        let mean = sum / m as f64;
+        let mut ss = 0.0;
+        steps(&mut |_, dt, _, _| {
+            ss += (dt - mean).powi(2);
+            Ok(())
+        })?;
+        let mut each = |f: &mut dyn FnMut(f64)| {
+            let _ = steps(&mut |_, dt, _, _| {
+                f(dt);
+                Ok(())
+            });
+        };
+        let dt_median = if m % 2 == 1 {
+            kth_smallest(m / 2, (dt_min, dt_max), &mut each)
+        } else {
+            let lo = kth_smallest(m / 2 - 1, (dt_min, dt_max), &mut each);
+            0.5 * (lo + kth_smallest(m / 2, (dt_min, dt_max), &mut each))
+        };
         Ok(Sampling {
-            n: t.len(),
+            n,
             dt_median,
             dt_min,
             dt_max,
-            dt_std: var.sqrt(),
+            dt_std: (ss / m as f64).sqrt(),
             uniform: dt_max - dt_min <= 1e-6 * dt_median,
         })
     }
@@ -134,23 +188,6 @@ pub struct Grid {
 impl Grid {
     pub fn time(&self, k: usize) -> f64 {
         self.t0 + k as f64 * self.dt
-    }
-}
-
-/// The uniform grid used for `t`: the samples themselves if uniform, else `[t0, t_end]` at the
-/// median step.
-pub fn grid_for(t: &[f64], s: &Sampling) -> Grid {
-    let t0 = t[0];
-    if s.uniform {
-        let dt = (t[t.len() - 1] - t0) / (t.len() - 1) as f64;
-        return Grid { t0, dt, n: t.len() };
-    }
-    let span = t[t.len() - 1] - t0;
-    let n = (span / s.dt_median).floor() as usize + 1;
-    Grid {
-        t0,
-        dt: s.dt_median,
-        n,
     }
 }
 
@@ -843,25 +880,64 @@ pub struct ChannelSpectrum {
 }
 
 /// Automatic cut-off: the largest of the channels' choices (see [`ChannelSpectrum`]), clamped to
-/// `[4/T, 0.2·fs]`. Five times the motion band keeps the pass band flat where the dynamics live
-/// (the classic rule for identification filters); the noise edge caps it where the data hold
-/// only noise.
-pub fn auto_cutoff(channels: &[&[f64]], fs: f64) -> (f64, Vec<ChannelSpectrum>) {
+/// `[4/T, 0.2·fs]` for a record of `len` samples. Five times the motion band keeps the pass
+/// band flat where the dynamics live (the classic rule for identification filters); the noise
+/// edge caps it where the data hold only noise.
+pub fn auto_cutoff(channels: &[Psd], fs: f64, len: usize) -> (f64, Vec<ChannelSpectrum>) {
     let mut per = Vec::new();
     let mut fc = 0.0f64;
-    for x in channels {
-        let c = channel_spectrum(x, fs);
+    for p in channels {
+        let c = channel_spectrum(p, fs);
         fc = fc.max(c.cutoff_hz);
         per.push(c);
     }
-    let len = channels.first().map_or(1, |c| c.len().max(1));
-    let lo = (4.0 * fs / len as f64).min(0.02 * fs);
+    let lo = (4.0 * fs / len.max(1) as f64).min(0.02 * fs);
     (fc.clamp(lo, 0.2 * fs), per)
 }
 
-fn channel_spectrum(x: &[f64], fs: f64) -> ChannelSpectrum {
-    let n = x.len();
-    if n < 16 {
+/// Welch periodogram of a channel's second difference (which whitens the spectrum: less window
+/// leakage), summed over pieces of equal length so a long record is judged piece by piece.
+/// Segments of a quarter of a piece give fine low-frequency resolution for the motion band.
+#[derive(Debug, Clone)]
+pub struct Psd {
+    freqs: Vec<f64>,
+    sum: Vec<f64>,
+    count: usize,
+}
+
+impl Psd {
+    pub fn of(x: &[f64], fs: f64) -> Psd {
+        let n = x.len();
+        if n < 16 {
+            return Psd {
+                freqs: Vec::new(),
+                sum: Vec::new(),
+                count: 0,
+            };
+        }
+        let d2: Vec<f64> = (1..n - 1)
+            .map(|k| x[k + 1] - 2.0 * x[k] + x[k - 1])
+            .collect();
+        let seg = (d2.len() / 4).max(256).min(d2.len());
+        let (freqs, sum) = welch_psd(&d2, fs, seg);
+        Psd {
+            freqs,
+            sum,
+            count: 1,
+        }
+    }
+
+    /// Adds another piece's periodogram (same length, so the same bins).
+    pub fn add(&mut self, o: &Psd) {
+        if o.freqs.len() == self.freqs.len() {
+            self.sum.iter_mut().zip(&o.sum).for_each(|(a, b)| *a += b);
+            self.count += o.count;
+        }
+    }
+}
+
+fn channel_spectrum(p: &Psd, fs: f64) -> ChannelSpectrum {
+    if p.count == 0 {
         let f = 0.2 * fs;
         return ChannelSpectrum {
             noise_floor: 0.0,
@@ -870,20 +946,14 @@ fn channel_spectrum(x: &[f64], fs: f64) -> ChannelSpectrum {
             cutoff_hz: f,
         };
     }
-    // Second difference whitens the spectrum (less window leakage); undo its gain
-    // |2 sin(πf/fs)|⁴ per bin. Segments of a quarter of the record give fine low-frequency
-    // resolution for the motion band.
-    let d2: Vec<f64> = (1..n - 1)
-        .map(|k| x[k + 1] - 2.0 * x[k] + x[k - 1])
-        .collect();
-    let seg = (d2.len() / 4).max(256).min(d2.len());
-    let (f, p) = welch_psd(&d2, fs, seg);
+    // Undo the second difference's gain |2 sin(πf/fs)|⁴ per bin.
+    let f = &p.freqs;
     let nb = f.len();
     let psd: Vec<f64> = (0..nb)
         .map(|k| {
             let g = (2.0 * (PI * f[k] / fs).sin()).powi(4);
             if g > 0.0 {
-                p[k] / g
+                p.sum[k] / p.count as f64 / g
             } else {
                 0.0
             }
@@ -929,6 +999,59 @@ fn channel_spectrum(x: &[f64], fs: f64) -> ChannelSpectrum {
         noise_edge_hz: edge,
         motion_band_hz: band,
         cutoff_hz: (5.0 * band).min(1.25 * edge),
+    }
+}
+
+/// Visits every value of a collection with the callback it is given.
+type Visit<'a> = dyn FnMut(&mut dyn FnMut(f64)) + 'a;
+
+/// Pieces in which long signals are read (times, spectra).
+const PIECE: usize = 1 << 16;
+
+/// The `k`-th smallest (0-based) of the values that `each` visits (all within `range`, the
+/// values' min and max), exactly, without holding them: histogram passes narrow the range to
+/// the bin holding rank `k` until few enough values are left to sort.
+fn kth_smallest(k: usize, range: (f64, f64), each: &mut Visit) -> f64 {
+    const BINS: usize = 4096;
+    let (mut lo, mut hi) = range;
+    let mut below = 0; // values < lo
+    loop {
+        if lo >= hi {
+            return lo;
+        }
+        // Values in [lo, hi] per bin, with each bin's own min and max: the bin map is monotone,
+        // so the values of bins b1..=b2 are exactly those in [min(b1), max(b2)].
+        let mut count = vec![0usize; BINS];
+        let mut vmin = vec![f64::INFINITY; BINS];
+        let mut vmax = vec![f64::NEG_INFINITY; BINS];
+        let bin = |v: f64| (((v - lo) / (hi - lo) * BINS as f64) as usize).min(BINS - 1);
+        each(&mut |v| {
+            if v >= lo && v <= hi {
+                let b = bin(v);
+                count[b] += 1;
+                vmin[b] = vmin[b].min(v);
+                vmax[b] = vmax[b].max(v);
+            }
+        });
+        let total: usize = count.iter().sum();
+        if total <= PIECE {
+            let mut vals = Vec::with_capacity(total);
+            each(&mut |v| {
+                if v >= lo && v <= hi {
+                    vals.push(v);
+                }
+            });
+            vals.sort_by(f64::total_cmp);
+            return vals[k - below];
+        }
+        let mut acc = below;
+        for b in 0..BINS {
+            if acc + count[b] > k {
+                (lo, hi, below) = (vmin[b], vmax[b], acc);
+                break;
+            }
+            acc += count[b];
+        }
     }
 }
 
@@ -1048,28 +1171,19 @@ impl Estimate {
     }
 }
 
-/// Raw samples of one file, row-major (`q[k * dof + j]`), as loaded.
-#[derive(Debug, Clone, Copy)]
-pub struct Raw<'a> {
-    pub t: &'a [f64],
-    pub dof: usize,
-    pub q: &'a [f64],
-    /// A q̇ column to filter (instead of differentiating q).
-    pub dq: Option<&'a [f64]>,
-    /// A q̈ column: with `dq`, the derivatives are used as given (resampled if uneven).
-    pub ddq: Option<&'a [f64]>,
-}
-
 /// The estimator of one file, set up once (sampling, grid, cut-off, filter) and then run window
-/// by window ([`Estimator::window`]), so no copy of the whole log's states is ever needed: each
-/// window is filtered with the filter's reach of margin on both sides, which makes it equal to
-/// estimating the whole signal at once to ~1e-7 of the signal's range (test: 7e-8).
+/// by window ([`Estimator::window`]) on the file's [`Log`], so no copy of the whole log — raw
+/// or estimated — is ever needed: each window reads the raw rows it covers plus the filter's
+/// reach of margin on both sides, which makes it equal to estimating the whole signal at once
+/// to ~1e-7 of the signal's range (test: 7e-8).
 #[derive(Debug, Clone)]
 pub struct Estimator {
     pub grid: Grid,
     pub filter: Filter,
     pub report: DerivativeReport,
-    /// Derivatives taken from the file as they are.
+    /// A q̇ column of the file is filtered (instead of differentiating q).
+    use_dq: bool,
+    /// Derivatives taken from the file as they are (it has q̇ and q̈).
     given: bool,
 }
 
@@ -1082,87 +1196,184 @@ pub struct States {
     pub ddq: Vec<Vec<f64>>,
 }
 
+/// Grid samples up to which the spectrum of the cut-off choice is taken over the whole signal;
+/// a longer one is judged on evenly spaced pieces of [`PIECE`] samples (at most
+/// [`SPECTRUM_PIECES`]), their periodograms averaged.
+pub const SPECTRUM_WHOLE: usize = 1 << 18;
+pub const SPECTRUM_PIECES: usize = 16;
+
 impl Estimator {
     /// Checks the samples and sets up the estimator (cut-off automatic from the spectrum unless
-    /// given) — see the module docs.
-    pub fn new(raw: Raw, opts: &Options) -> Result<Self, DerivativeError> {
-        let sampling = Sampling::of(raw.t)?;
-        let n_j = raw.dof;
-        let chans: Vec<(usize, &[f64])> = std::iter::once(raw.q)
-            .chain(raw.dq)
-            .chain(raw.ddq)
-            .enumerate()
+    /// given) — see the module docs. A q̇ column is filtered if `file_velocity` (else q is
+    /// differentiated); a file with both q̇ and q̈ columns is used as given.
+    pub fn new(log: &Log, file_velocity: bool, opts: &Options) -> Result<Self, DerivativeError> {
+        let l = log.layout;
+        let given = l.dq && l.ddq;
+        let use_dq = l.dq && (file_velocity || given);
+        let sampling = Sampling::of_log(log)?;
+        // The channels used, as offsets of their blocks in the row (channel c·dof + j + 1).
+        let n_j = l.dof;
+        let used: Vec<usize> = [(true, 1), (use_dq, 1 + n_j), (given, 1 + 2 * n_j)]
+            .into_iter()
+            .filter_map(|(u, at)| u.then_some(at))
             .collect();
-        for (c, x) in chans {
-            if let Some(k) = x.iter().position(|v| !v.is_finite()) {
-                return Err(DerivativeError::NonFinite {
-                    channel: c * n_j + k % n_j + 1,
-                    row: k / n_j,
-                });
-            }
-        }
-        let grid = grid_for(raw.t, &sampling);
-        let fs = 1.0 / grid.dt;
-        let given = raw.dq.is_some() && raw.ddq.is_some();
-        let (fc, per_channel, auto) = match opts.cutoff_hz {
-            Some(fc) => (fc, Vec::new(), false),
-            None => {
-                // Velocity channels are integrated view-wise: their spectrum is judged like q's by
-                // using a running sum (so one rule serves both).
-                let whole = |x: &[f64]| on_grid(raw.t, &sampling, &grid, x, n_j, 0, grid.n);
-                let mut chans: Vec<Vec<f64>> = whole(raw.q);
-                if let (Some(d), false) = (raw.dq, given) {
-                    for x in whole(d) {
-                        let mut acc = 0.0;
-                        chans.push(
-                            x.iter()
-                                .map(|v| {
-                                    acc += v * grid.dt;
-                                    acc
-                                })
-                                .collect(),
-                        );
+        let (mut r, mut bad) = (0, None);
+        log.rows(0, log.len(), |row| {
+            if bad.is_none() {
+                for (c, &at) in used.iter().enumerate() {
+                    if let Some(j) = row[at..at + n_j].iter().position(|v| !v.is_finite()) {
+                        bad = Some(DerivativeError::NonFinite {
+                            channel: c * n_j + j + 1,
+                            row: r,
+                        });
+                        break;
                     }
                 }
-                let refs: Vec<&[f64]> = chans.iter().map(|c| c.as_slice()).collect();
-                let (fc, per) = auto_cutoff(&refs, fs);
-                (fc, per, true)
+            }
+            r += 1;
+        });
+        if let Some(e) = bad {
+            return Err(e);
+        }
+        let grid = grid_for_log(log, &sampling);
+        let fs = 1.0 / grid.dt;
+        let mut e = Estimator {
+            grid,
+            filter: Filter::lowpass(opts.method, 0.1 * fs, fs)?,
+            report: DerivativeReport {
+                method: opts.method,
+                filter: String::new(),
+                cutoff_hz: f64::NAN,
+                cutoff_auto: opts.cutoff_hz.is_none(),
+                per_channel: Vec::new(),
+                sampling,
+                resampled: !sampling.uniform,
+                dq_source: String::new(),
+                ddq_source: String::new(),
+                fs_hz: fs,
+            },
+            use_dq,
+            given,
+        };
+        let fc = match opts.cutoff_hz {
+            Some(fc) => fc,
+            None => {
+                let (fc, per) = e.auto_cutoff(log);
+                e.report.per_channel = per;
+                fc
             }
         };
-        let filter = Filter::lowpass(opts.method, fc, fs)?;
-        let (dq_source, ddq_source) = match (raw.dq.is_some(), given) {
+        e.filter = Filter::lowpass(opts.method, fc, fs)?;
+        let (dq_source, ddq_source) = match (use_dq, given) {
             (_, true) => ("file (as given)", "file (as given)"),
             (true, false) => ("file, filtered", "differentiated filtered dq"),
             (false, false) => ("differentiated q", "differentiated q"),
         };
-        let report = DerivativeReport {
-            method: opts.method,
-            filter: filter.as_zero_phase().describe(),
-            cutoff_hz: fc,
-            cutoff_auto: auto,
-            per_channel,
-            sampling,
-            resampled: !sampling.uniform,
-            dq_source: dq_source.into(),
-            ddq_source: ddq_source.into(),
-            fs_hz: fs,
+        e.report.filter = e.filter.as_zero_phase().describe();
+        e.report.cutoff_hz = fc;
+        e.report.dq_source = dq_source.into();
+        e.report.ddq_source = ddq_source.into();
+        Ok(e)
+    }
+
+    /// The spectrum's cut-off ([`auto_cutoff`]) over the positions, and over the q̇ channels
+    /// if they are filtered (integrated, so their spectrum is judged like q's by one rule).
+    fn auto_cutoff(&self, log: &Log) -> (f64, Vec<ChannelSpectrum>) {
+        let n = self.grid.n;
+        let pieces: Vec<(usize, usize)> = if n <= SPECTRUM_WHOLE {
+            vec![(0, n)]
+        } else {
+            let count = (n / PIECE).min(SPECTRUM_PIECES);
+            let gap = (n - count * PIECE) / count;
+            (0..count)
+                .map(|i| {
+                    let a = gap / 2 + i * (PIECE + gap);
+                    (a, a + PIECE)
+                })
+                .collect()
         };
-        Ok(Estimator {
-            grid,
-            filter,
-            report,
-            given,
-        })
+        let integrate_dq = self.use_dq && !self.given;
+        let mut psd: Vec<Option<Psd>> = Vec::new();
+        for &(lo, hi) in &pieces {
+            let w = self.rows_for(log, lo, hi);
+            let mut chans = self.on_grid(&w, &w.rows.q, lo, hi);
+            if let (Some(d), true) = (&w.rows.dq, integrate_dq) {
+                for x in self.on_grid(&w, d, lo, hi) {
+                    let mut acc = 0.0;
+                    chans.push(
+                        x.iter()
+                            .map(|v| {
+                                acc += v * self.grid.dt;
+                                acc
+                            })
+                            .collect(),
+                    );
+                }
+            }
+            psd.resize_with(chans.len(), || None);
+            for (p, x) in psd.iter_mut().zip(&chans) {
+                let piece = Psd::of(x, self.report.fs_hz);
+                match p {
+                    Some(p) => p.add(&piece),
+                    None => *p = Some(piece),
+                }
+            }
+        }
+        let psd: Vec<Psd> = psd.into_iter().flatten().collect();
+        auto_cutoff(&psd, self.report.fs_hz, n)
     }
 
-    /// Channel `x` (row-major, `dof` per row) on grid samples `lo..hi`, per joint (resampled
-    /// linearly if the sampling is uneven).
-    pub fn on_grid(&self, t: &[f64], x: &[f64], dof: usize, lo: usize, hi: usize) -> Vec<Vec<f64>> {
-        on_grid(t, &self.report.sampling, &self.grid, x, dof, lo, hi)
+    /// The raw rows covering grid samples `lo..hi` (one more on each side if resampled), and
+    /// the first one's index.
+    fn rows_for(&self, log: &Log, lo: usize, hi: usize) -> Window {
+        if self.report.sampling.uniform {
+            return Window {
+                r0: lo,
+                rows: log.read(lo, hi),
+            };
+        }
+        let g = &self.grid;
+        let (t0, t1) = (g.time(lo), g.time(hi.max(lo + 1) - 1));
+        let r0 = log.partition_point(|v| v <= t0).saturating_sub(1);
+        let r1 = (log.partition_point(|v| v < t1) + 1).min(log.len() - 1);
+        let (r0, r1) = (r0.min(r1.saturating_sub(1)), r1.max(1));
+        Window {
+            r0,
+            rows: log.read(r0, r1 + 1),
+        }
     }
 
-    /// Estimated states on grid samples `lo..hi`.
-    pub fn window(&self, raw: Raw, lo: usize, hi: usize) -> States {
+    /// Channel `x` (row-major, of the window's rows) on grid samples `lo..hi`, per joint
+    /// (resampled linearly if the sampling is uneven).
+    fn on_grid(&self, w: &Window, x: &[f64], lo: usize, hi: usize) -> Vec<Vec<f64>> {
+        let dof = w.rows.dof;
+        if self.report.sampling.uniform {
+            return (0..dof)
+                .map(|j| (lo..hi).map(|k| x[(k - w.r0) * dof + j]).collect())
+                .collect();
+        }
+        let sub = Grid {
+            t0: self.grid.time(lo),
+            dt: self.grid.dt,
+            n: hi - lo,
+        };
+        (0..dof)
+            .map(|j| {
+                let xs: Vec<f64> = (0..w.rows.len()).map(|k| x[k * dof + j]).collect();
+                resample_linear(&w.rows.t, &xs, &sub)
+            })
+            .collect()
+    }
+
+    /// The measured torque of `log` on grid samples `lo..hi`, per joint.
+    pub fn tau_on_grid(&self, log: &Log, lo: usize, hi: usize) -> Vec<Vec<f64>> {
+        let w = self.rows_for(log, lo, hi);
+        let tau = w.rows.tau.as_deref().unwrap_or(&[]);
+        self.on_grid(&w, tau, lo, hi)
+    }
+
+    /// Estimated states of `log` on grid samples `lo..hi`.
+    pub fn window(&self, log: &Log, lo: usize, hi: usize) -> States {
         let n = self.grid.n;
         let margin = if self.given {
             0
@@ -1182,16 +1393,18 @@ impl Estimator {
         }
         let (pad_left, pad_right) = (elo == 0, ehi == n);
         let dt = self.grid.dt;
-        let g = |x: &[f64]| self.on_grid(raw.t, x, raw.dof, elo, ehi);
-        let qg = g(raw.q);
-        let dqg = raw.dq.map(g);
-        let ddqg = raw.ddq.map(g);
+        let w = self.rows_for(log, elo, ehi);
+        let g = |x: &[f64]| self.on_grid(&w, x, elo, ehi);
+        let qg = g(&w.rows.q);
+        let dqg = w.rows.dq.as_deref().filter(|_| self.use_dq).map(g);
+        let ddqg = w.rows.ddq.as_deref().filter(|_| self.given).map(g);
         let cut = |x: Vec<f64>| x[lo - elo..hi - elo].to_vec();
+        let dof = w.rows.dof;
         let mut st = States {
             lo,
-            q: Vec::with_capacity(raw.dof),
-            dq: Vec::with_capacity(raw.dof),
-            ddq: Vec::with_capacity(raw.dof),
+            q: Vec::with_capacity(dof),
+            dq: Vec::with_capacity(dof),
+            ddq: Vec::with_capacity(dof),
         };
         match (&self.filter, dqg, ddqg) {
             (_, Some(d), Some(dd)) if self.given => {
@@ -1210,7 +1423,7 @@ impl Estimator {
                     .map(|c| c.as_mut_slice())
                     .collect();
                 bw.apply_many(&mut chans, pad_left, pad_right);
-                for j in 0..raw.dof {
+                for j in 0..dof {
                     let (d1, d2) = if v.is_empty() {
                         central_uniform(&q[j], dt)
                     } else {
@@ -1242,37 +1455,28 @@ impl Estimator {
     }
 }
 
-/// Channel `x` (row-major, `dof` per row, sampled at `t`) on grid samples `lo..hi`, per joint.
-fn on_grid(
-    t: &[f64],
-    sampling: &Sampling,
-    grid: &Grid,
-    x: &[f64],
-    dof: usize,
-    lo: usize,
-    hi: usize,
-) -> Vec<Vec<f64>> {
-    if sampling.uniform {
-        return (0..dof)
-            .map(|j| (lo..hi).map(|k| x[k * dof + j]).collect())
-            .collect();
+/// Raw rows of a log read for a window of grid samples: `rows` are the log's rows `r0..`.
+struct Window {
+    r0: usize,
+    rows: Trajectory,
+}
+
+/// The uniform grid of a log: its samples themselves if uniform, else `[t0, t_end]` at the
+/// median step (only the first and last times are read).
+fn grid_for_log(log: &Log, s: &Sampling) -> Grid {
+    let (t0, t1, n) = (log.t(0), log.t(log.len() - 1), log.len());
+    if s.uniform {
+        return Grid {
+            t0,
+            dt: (t1 - t0) / (n - 1) as f64,
+            n,
+        };
     }
-    // Raw samples around the window's times (grid times lie inside `t`).
-    let (t0, t1) = (grid.time(lo), grid.time(hi.max(lo + 1) - 1));
-    let r0 = t.partition_point(|&v| v <= t0).saturating_sub(1);
-    let r1 = (t.partition_point(|&v| v < t1) + 1).min(t.len() - 1);
-    let (r0, r1) = (r0.min(r1.saturating_sub(1)), r1.max(1));
-    let sub = Grid {
+    Grid {
         t0,
-        dt: grid.dt,
-        n: hi - lo,
-    };
-    (0..dof)
-        .map(|j| {
-            let xs: Vec<f64> = (r0..=r1).map(|k| x[k * dof + j]).collect();
-            resample_linear(&t[r0..=r1], &xs, &sub)
-        })
-        .collect()
+        dt: s.dt_median,
+        n: ((t1 - t0) / s.dt_median).floor() as usize + 1,
+    }
 }
 
 /// Estimates filtered `q, q̇, q̈` on a uniform grid from samples `t`, `q[j]` and optionally
@@ -1290,16 +1494,17 @@ pub fn estimate(
             .flat_map(|k| c.iter().map(move |x| x.get(k).copied().unwrap_or(f64::NAN)))
             .collect()
     };
-    let (qr, dqr) = (rows(q), dq.map(rows));
-    let raw = Raw {
-        t,
+    let log = Log::from(Trajectory {
+        source: String::new(),
         dof,
-        q: &qr,
-        dq: dqr.as_deref(),
+        t: t.to_vec(),
+        q: rows(q),
+        dq: dq.map(rows),
         ddq: None,
-    };
-    let e = Estimator::new(raw, opts)?;
-    let st = e.window(raw, 0, e.grid.n);
+        tau: None,
+    });
+    let e = Estimator::new(&log, true, opts)?;
+    let st = e.window(&log, 0, e.grid.n);
     Ok(Estimate {
         grid: e.grid,
         q: st.q,
@@ -1621,22 +1826,24 @@ mod tests {
         let mut worst = 0.0f64;
         for method in [Method::Butterworth, Method::SavitzkyGolay] {
             for with_dq in [false, true] {
-                let raw = Raw {
-                    t: &t,
+                let log = Log::from(Trajectory {
+                    source: String::new(),
                     dof: 2,
-                    q: &q,
-                    dq: with_dq.then_some(dq.as_slice()),
+                    t: t.clone(),
+                    q: q.clone(),
+                    dq: with_dq.then(|| dq.clone()),
                     ddq: None,
-                };
+                    tau: None,
+                });
                 let opts = Options {
                     method,
                     cutoff_hz: Some(6.0),
                 };
-                let e = Estimator::new(raw, &opts).unwrap();
+                let e = Estimator::new(&log, true, &opts).unwrap();
                 let n = e.grid.n;
-                let whole = e.window(raw, 0, n);
+                let whole = e.window(&log, 0, n);
                 for (lo, hi) in [(0, 700), (1234, 4321), (4000, n), (n - 1, n)] {
-                    let w = e.window(raw, lo, hi);
+                    let w = e.window(&log, lo, hi);
                     assert_eq!((w.lo, w.q[1].len()), (lo, hi - lo));
                     let pairs = [(&w.q, &whole.q), (&w.dq, &whole.dq), (&w.ddq, &whole.ddq)];
                     for (c, (a, b)) in pairs.into_iter().enumerate() {
@@ -1656,6 +1863,41 @@ mod tests {
             }
         }
         println!("largest window/whole difference: {worst:.1e} of the channel's range");
+    }
+
+    /// The piecewise sampling statistics equal the direct ones, the median exactly: spread
+    /// steps (histogram refinement), nearly all steps equal with rare late cycles (one bin
+    /// holds almost everything), odd and even step counts.
+    #[test]
+    fn streamed_sampling_statistics_equal_the_direct_ones() {
+        let mut x = 12345u64;
+        let mut uniform = move || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            (x >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let spread: Vec<f64> = (0..300_001).map(|_| 1e-3 * (1.0 + uniform())).collect();
+        let late: Vec<f64> = (0..200_000)
+            .map(|k| if k % 997 == 0 { 3.7e-3 } else { 2e-3 })
+            .collect();
+        for dts in [spread.clone(), spread[1..].to_vec(), late] {
+            let mut t = vec![0.0];
+            for d in &dts {
+                t.push(t[t.len() - 1] + d);
+            }
+            let s = Sampling::of(&t).unwrap();
+            let mut sorted: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
+            sorted.sort_by(f64::total_cmp);
+            let m = sorted.len();
+            let median = if m % 2 == 1 {
+                sorted[m / 2]
+            } else {
+                0.5 * (sorted[m / 2 - 1] + sorted[m / 2])
+            };
+            assert_eq!(s.dt_median, median);
+            assert_eq!((s.dt_min, s.dt_max), (sorted[0], sorted[m - 1]));
+        }
     }
 
     #[test]

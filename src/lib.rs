@@ -3,7 +3,8 @@
 //!
 //! Layout: [`model`] is the contract every generated arm implements, [`arms`] the registry of
 //! generated arms, [`reference`] the hand-written recursive Newton–Euler oracle; [`dh`],
-//! [`params`] and [`data`] load user files with errors that say where and how to fix; [`io`]
+//! [`params`] and [`data`] load user files with errors that say where and how to fix ([`log`]
+//! streams a data file for identification, spilling a long one to disk); [`io`]
 //! writes outputs atomically; [`pack`] runs every kernel on four samples at once (SIMD across
 //! samples); [`cli`] is the command line.
 
@@ -19,6 +20,7 @@ pub mod effects;
 pub mod excitation;
 pub mod identify;
 pub mod io;
+pub mod log;
 pub mod model;
 pub mod pack;
 pub mod paper;

@@ -13,10 +13,10 @@ use anyhow::{Context, Result};
 
 use super::InputError;
 use crate::arms::resolve;
-use crate::data::Trajectory;
 use crate::derivative::Method;
 use crate::effects::parse_list;
 use crate::identify::{self, Config, Outcome};
+use crate::log::Log;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -126,8 +126,8 @@ pub fn run(args: &Args) -> Result<()> {
         effects,
         ..Config::default()
     };
-    let load = |p: &Path| Trajectory::from_path(p, Some(dof));
-    let train: Vec<Trajectory> = args
+    let load = |p: &Path| Log::open(p, Some(dof));
+    let train: Vec<Log> = args
         .data
         .iter()
         .map(|p| load(p))

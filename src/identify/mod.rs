@@ -2,8 +2,9 @@
 //! effect loop (see [`crate::effects`]) and everything a report needs.
 //!
 //! Pipeline of [`run`] (every step is reported):
-//! 1. **Derivatives** per file ([`crate::derivative::Estimator`], run window by window as each
-//!    pass needs them, so no copy of a long log's states is held): uneven sampling is resampled to
+//! 1. **Derivatives** per file ([`crate::derivative::Estimator`], run window by window on the
+//!    file's [`Log`] as each pass needs them, so neither a long log nor its states are ever held
+//!    whole — a long log lives in a temporary file): uneven sampling is resampled to
 //!    a uniform grid, q is low-passed with a zero-phase filter whose cut-off is chosen from the
 //!    spectrum, q̇/q̈ come from central differences (a q̇ column in the file is used, filtered,
 //!    and differentiated for q̈). Files with both q̇ and q̈ are used as given.
@@ -38,16 +39,14 @@ pub mod base;
 pub mod ls;
 pub mod synth;
 
-use std::sync::Arc;
-
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::arms::ArmSource;
-use crate::data::Trajectory;
 use crate::derivative::{self, DerivativeReport, Estimator, Filter, States};
 use crate::effects::{self, Effect, EffectsSpec, Rules, Scales, Selection, Term};
+use crate::log::Log;
 use base::BaseModel;
 use ls::Accumulator;
 
@@ -137,12 +136,10 @@ impl Default for Config {
 #[derive(Debug, Clone)]
 pub struct Prepared {
     pub name: String,
-    pub traj: Arc<Trajectory>,
+    pub log: Log,
     /// The file's estimator: states are estimated window by window when needed
     /// ([`Prepared::states`]), never held for the whole log.
     pub est: Estimator,
-    /// Whether a q̇ column of the file is used (filtered).
-    file_velocity: bool,
     /// Grid samples used for the regression (filter edges dropped).
     pub keep: (usize, usize),
     /// Raw samples used for errors and predictions.
@@ -229,11 +226,11 @@ impl Smoothing {
 }
 
 impl Prepared {
-    /// Estimates derivatives of a loaded trajectory (which must have torques) with the options
-    /// of `cfg` (cut-off automatic from the spectrum unless given).
-    pub fn new(traj: Trajectory, cfg: &Config) -> Result<Self, IdentifyError> {
+    /// Sets up derivative estimation of a log (which must have torques) with the options of
+    /// `cfg` (cut-off automatic from the spectrum unless given).
+    pub fn new(log: Log, cfg: &Config) -> Result<Self, IdentifyError> {
         let s = Smoothing::default();
-        Self::with_cutoff(Arc::new(traj), cfg, cfg.derivative.cutoff_hz, s, None)
+        Self::with_cutoff(log, cfg, cfg.derivative.cutoff_hz, s, None)
     }
 
     /// As [`Prepared::new`] with the cut-off `fc` (`None` = automatic), the regression filter
@@ -241,19 +238,18 @@ impl Prepared {
     /// `edge_fc` (default its own; a common value keeps the samples used the same when cut-offs
     /// are compared).
     pub fn with_cutoff(
-        traj: Arc<Trajectory>,
+        log: Log,
         cfg: &Config,
         fc: Option<f64>,
         smoothing: Smoothing,
         edge_fc: Option<f64>,
     ) -> Result<Self, IdentifyError> {
-        let name = traj.source.clone();
-        let dof = traj.dof;
-        if traj.tau.is_none() {
+        let name = log.source.clone();
+        let dof = log.dof();
+        if !log.layout.tau {
             return Err(IdentifyError::NoTorque { file: name, dof });
         }
-        traj.require_samples(MIN_SAMPLES, "identification")?;
-        let n = traj.len();
+        log.require_samples(MIN_SAMPLES, "identification")?;
         let derr = |source| IdentifyError::Derivative {
             file: name.clone(),
             source,
@@ -262,7 +258,7 @@ impl Prepared {
             cutoff_hz: fc,
             ..cfg.derivative
         };
-        let est = Estimator::new(raw(&traj, cfg.file_velocity), &opts).map_err(derr)?;
+        let est = Estimator::new(&log, cfg.file_velocity, &opts).map_err(derr)?;
         let g = est.grid;
         let ratio = smoothing.regression_ratio;
         let fr = est.report.cutoff_hz * ratio;
@@ -275,17 +271,12 @@ impl Prepared {
         let edge = ((0.5 / efc / g.dt).ceil() as usize).min(g.n / 40);
         let keep = (edge, g.n - edge);
         let (t0, t1) = (g.time(keep.0), g.time(keep.1 - 1));
-        let lo = traj.t.iter().position(|&t| t >= t0 - 1e-12).unwrap_or(0);
-        let hi = traj
-            .t
-            .iter()
-            .rposition(|&t| t <= t1 + 1e-12)
-            .map_or(n, |k| k + 1);
+        let lo = log.partition_point(|t| t < t0 - 1e-12);
+        let hi = log.partition_point(|t| t <= t1 + 1e-12);
         Ok(Prepared {
             name,
-            traj,
+            log,
             est,
-            file_velocity: cfg.file_velocity,
             keep,
             raw_keep: (lo, hi.max(lo)),
             rfilter,
@@ -307,12 +298,12 @@ impl Prepared {
     }
 
     pub fn dof(&self) -> usize {
-        self.traj.dof
+        self.log.dof()
     }
 
     /// Estimated states on grid samples `lo..hi`.
     pub fn states(&self, lo: usize, hi: usize) -> derivative::States {
-        self.est.window(raw(&self.traj, self.file_velocity), lo, hi)
+        self.est.window(&self.log, lo, hi)
     }
 
     /// `(Σ f(states, i), count)` over the kept grid samples, window by window.
@@ -327,21 +318,7 @@ impl Prepared {
 
     /// Measured torque on grid samples `lo..hi` (`tau[j][k - lo]`).
     fn grid_tau(&self, lo: usize, hi: usize) -> Vec<Vec<f64>> {
-        let tau = self.traj.tau.as_deref().unwrap_or(&[]);
-        self.est.on_grid(&self.traj.t, tau, self.dof(), lo, hi)
-    }
-}
-
-/// The raw samples of `t` the estimator reads: a q̇ column only if `file_velocity` (or if q̈ is
-/// given too: then both are used as given).
-fn raw(t: &Trajectory, file_velocity: bool) -> derivative::Raw<'_> {
-    let given = t.dq.is_some() && t.ddq.is_some();
-    derivative::Raw {
-        t: &t.t,
-        dof: t.dof,
-        q: &t.q,
-        dq: t.dq.as_deref().filter(|_| file_velocity || given),
-        ddq: t.ddq.as_deref().filter(|_| given),
+        self.est.tau_on_grid(&self.log, lo, hi)
     }
 }
 
@@ -580,13 +557,13 @@ fn finish_transposed(accs: Vec<Vec<Accumulator>>, nblocks: usize) -> Vec<Vec<Acc
     out
 }
 
-/// Where raw sample `r` lies on the grid: `(k, s)`, at `(1 − s)·k + s·(k + 1)`.
-fn grid_pos(p: &Prepared, r: usize) -> (usize, f64) {
+/// Where raw sample `r`, at time `t`, lies on the grid: `(k, s)`, at `(1 − s)·k + s·(k + 1)`.
+fn grid_pos(p: &Prepared, r: usize, t: f64) -> (usize, f64) {
     let g = p.est.grid;
-    if !p.est.report.resampled && g.n == p.traj.len() {
+    if !p.est.report.resampled && g.n == p.log.len() {
         return (r, 0.0);
     }
-    let u = ((p.traj.t[r] - g.t0) / g.dt).clamp(0.0, (g.n - 1) as f64);
+    let u = ((t - g.t0) / g.dt).clamp(0.0, (g.n - 1) as f64);
     let k = (u.floor() as usize).min(g.n.saturating_sub(2));
     (k, u - k as f64)
 }
@@ -596,7 +573,7 @@ fn first_raw_from(p: &Prepared, a: usize) -> usize {
     let (mut lo, mut hi) = p.raw_keep;
     while lo < hi {
         let mid = (lo + hi) / 2;
-        if grid_pos(p, mid).0 < a {
+        if grid_pos(p, mid, p.log.t(mid)).0 < a {
             lo = mid + 1;
         } else {
             hi = mid;
@@ -611,7 +588,8 @@ fn raw_cores(p: &Prepared) -> Vec<(usize, usize)> {
     if lo >= hi {
         return Vec::new();
     }
-    cores(p, grid_pos(p, lo).0, grid_pos(p, hi - 1).0 + 1)
+    let at = |r| grid_pos(p, r, p.log.t(r)).0;
+    cores(p, at(lo), at(hi - 1) + 1)
 }
 
 /// Torque predictions of several coefficient sets (`[set][joint][active column]`) on a file's
@@ -692,16 +670,26 @@ impl Predicted {
 }
 
 /// Used raw samples of `p` whose grid position lies in the core `a..b`, every `stride`-th of
-/// the used range.
+/// the used range: `(r, t, τ, grid position)` of each, from one read of the log's rows.
 fn raw_in_core(
     p: &Prepared,
     (a, b): (usize, usize),
     stride: usize,
-) -> std::iter::StepBy<std::ops::Range<usize>> {
+    mut f: impl FnMut(usize, f64, &[f64], (usize, f64)),
+) {
     let stride = stride.max(1);
     let (r0, r1) = (first_raw_from(p, a), first_raw_from(p, b));
     let first = r0 + (stride - (r0 - p.raw_keep.0) % stride) % stride;
-    (first..r1.max(first)).step_by(stride)
+    if first >= r1 {
+        return;
+    }
+    let rows = p.log.read(first, r1);
+    let n = p.dof();
+    let tau = rows.tau.as_deref().unwrap_or(&[]);
+    for r in (first..r1).step_by(stride) {
+        let (i, t) = (r - first, rows.t[r - first]);
+        f(r, t, &tau[i * n..(i + 1) * n], grid_pos(p, r, t));
+    }
 }
 
 /// A model's parameters spread over joint `j`'s active columns (zero outside the model), so a
@@ -788,7 +776,6 @@ pub fn raw_sums(
     let mut offset = 0;
     for (fi, p) in files.iter().enumerate() {
         let nblocks = blocks.map_or(1, |b| b[fi]);
-        let tau = p.traj.tau.as_deref().unwrap_or(&[]);
         // Coefficient sets `[set][joint][active column]`: model m's full-data parameters (if
         // any) at `first_set[m]`, then its leave-one-block-out ones, block by block.
         let (mut sets, mut first_set) = (Vec::new(), Vec::new());
@@ -823,10 +810,8 @@ pub fn raw_sums(
                     }
                 }
                 let pc = Predicted::new(p, &mut rows, &active, core, &sets, &wanted);
-                for r in raw_in_core(p, core, 1) {
-                    let (k, s) = grid_pos(p, r);
+                raw_in_core(p, core, 1, |_, _, tau, (k, s)| {
                     let blk = p.block_of(k + usize::from(s >= 0.5), nblocks);
-                    let tau = &tau[r * n..(r + 1) * n];
                     for (ss, t) in sums.tss.iter_mut().zip(tau) {
                         *ss += t * t;
                     }
@@ -843,7 +828,7 @@ pub fn raw_sums(
                             }
                         }
                     }
-                }
+                });
                 sums
             })
             .collect();
@@ -1130,12 +1115,12 @@ pub struct FileInfo {
 
 impl FileInfo {
     fn of(p: &Prepared) -> Self {
-        let t = &p.traj.t;
+        let n = p.log.len();
         FileInfo {
             file: p.name.clone(),
-            rows: p.traj.len(),
+            rows: n,
             rows_used: p.raw_keep.1 - p.raw_keep.0,
-            duration_s: t[t.len() - 1] - t[0],
+            duration_s: p.log.t(n - 1) - p.log.t(0),
             derivative: p.est.report.clone(),
             regression_row_every: p.decimation(),
             regression_filter: p.rfilter.as_zero_phase().describe(),
@@ -1228,13 +1213,12 @@ pub struct Outcome {
 /// Identifies `arm` from `train` files, validating on `validate` if given (see the module docs).
 pub fn run(
     arm: &ArmSource,
-    train: Vec<Trajectory>,
-    validate: Option<Trajectory>,
+    train: Vec<Log>,
+    validate: Option<Log>,
     cfg: &Config,
 ) -> Result<Outcome, IdentifyError> {
     let base = BaseModel::for_arm(arm);
     let table = arm.dh_table().ok();
-    let train: Vec<Arc<Trajectory>> = train.into_iter().map(Arc::new).collect();
     for t in &train {
         check_dof(t, &base)?;
     }
@@ -1252,7 +1236,7 @@ pub fn run(
         .collect::<Result<_, _>>()?;
     let val = match validate {
         Some(v) => Some(Prepared::with_cutoff(
-            Arc::new(v),
+            v,
             cfg,
             fc.or(Some(preps[0].est.report.cutoff_hz)),
             sm,
@@ -1265,11 +1249,11 @@ pub fn run(
     Ok(out)
 }
 
-fn check_dof(t: &Trajectory, base: &BaseModel) -> Result<(), IdentifyError> {
-    if t.dof != base.dof() {
+fn check_dof(t: &Log, base: &BaseModel) -> Result<(), IdentifyError> {
+    if t.dof() != base.dof() {
         return Err(IdentifyError::Dof {
             file: t.source.clone(),
-            found: t.dof,
+            found: t.dof(),
             dof: base.dof(),
         });
     }
@@ -1279,20 +1263,20 @@ fn check_dof(t: &Trajectory, base: &BaseModel) -> Result<(), IdentifyError> {
 /// Prepared files per (file, cut-off), so cut-off scans and leave-one-out studies reuse them.
 #[derive(Debug, Default)]
 pub struct PrepCache {
-    map: Vec<(usize, u64, Prepared)>,
+    map: Vec<((usize, usize), u64, Prepared)>,
 }
 
 impl PrepCache {
     fn get(
         &mut self,
-        t: &Arc<Trajectory>,
+        t: &Log,
         cfg: &Config,
         fc: Option<f64>,
         sm: Smoothing,
         edge_fc: Option<f64>,
     ) -> Result<Prepared, IdentifyError> {
         let key = (
-            Arc::as_ptr(t) as usize,
+            t.key(),
             fc.map_or(0, f64::to_bits)
                 ^ edge_fc.map_or(1, f64::to_bits).rotate_left(17)
                 ^ sm.regression_ratio.to_bits().rotate_left(31),
@@ -1309,7 +1293,7 @@ impl PrepCache {
 
     fn get_all(
         &mut self,
-        ts: &[Arc<Trajectory>],
+        ts: &[Log],
         cfg: &Config,
         fc: Option<f64>,
         sm: Smoothing,
@@ -1328,7 +1312,7 @@ pub const SCAN_PIECES: usize = 4;
 /// The files the cut-off scan fits: `train` itself up to [`SCAN_SAMPLES`] samples in all, else
 /// [`SCAN_PIECES`] evenly spaced pieces of each file, of lengths proportional to the files'
 /// (each piece filtered on its own, as a file of its own).
-pub fn scan_pieces(train: &[Arc<Trajectory>]) -> Vec<Arc<Trajectory>> {
+pub fn scan_pieces(train: &[Log]) -> Vec<Log> {
     let total: usize = train.iter().map(|t| t.len()).sum();
     if total <= SCAN_SAMPLES {
         return train.to_vec();
@@ -1344,7 +1328,7 @@ pub fn scan_pieces(train: &[Arc<Trajectory>]) -> Vec<Arc<Trajectory>> {
         let gap = (t.len() - SCAN_PIECES * piece) / SCAN_PIECES;
         for i in 0..SCAN_PIECES {
             let lo = gap / 2 + i * (piece + gap);
-            out.push(Arc::new(t.slice(lo, lo + piece)));
+            out.push(t.slice(lo, lo + piece));
         }
     }
     out
@@ -1377,7 +1361,7 @@ pub struct FilterChoice {
 pub fn choose_cutoff(
     base: &BaseModel,
     table: Option<&crate::dh::DhTable>,
-    train: &[Arc<Trajectory>],
+    train: &[Log],
     cfg: &Config,
     cache: &mut PrepCache,
 ) -> Result<(FilterChoice, Vec<CutoffTrial>), IdentifyError> {
@@ -1792,7 +1776,7 @@ fn with_hint(mut e: RankError, train: &[Prepared]) -> RankError {
     e
 }
 
-/// Calls `f(r, dq, tau, before, after)` for every `stride`-th used raw sample of `p`, with
+/// Calls `f(t, dq, tau, before, after)` for every `stride`-th used raw sample of `p`, with
 /// the predictions of both models (see [`Predicted`]), the estimated q̇ at the
 /// sample and its measured τ.
 fn for_predictions(
@@ -1801,7 +1785,7 @@ fn for_predictions(
     p: &Prepared,
     models: [&ModelResult; 2],
     stride: usize,
-    mut f: impl FnMut(usize, &[f64], &[f64], &[f64], &[f64]),
+    mut f: impl FnMut(f64, &[f64], &[f64], &[f64], &[f64]),
 ) {
     let n = layout.dof;
     let active: Vec<Vec<usize>> = (0..n).map(|j| layout.active(j)).collect();
@@ -1813,13 +1797,11 @@ fn for_predictions(
                 .collect()
         })
         .collect();
-    let tau = p.traj.tau.as_deref().unwrap_or(&[]);
     let mut rows = Rows::new(base, layout);
     let (mut dq, mut pb, mut pa) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
     for core in raw_cores(p) {
         let pc = Predicted::new(p, &mut rows, &active, core, &coef, &[true, true]);
-        for r in raw_in_core(p, core, stride) {
-            let (k, s) = grid_pos(p, r);
+        raw_in_core(p, core, stride, |_, t, tau, (k, s)| {
             for j in 0..n {
                 let (d, i) = (&pc.states.dq[j], k - pc.lo);
                 dq[j] = if s > 0.0 {
@@ -1830,8 +1812,8 @@ fn for_predictions(
                 pb[j] = pc.at(0, j, (k, s));
                 pa[j] = pc.at(1, j, (k, s));
             }
-            f(r, &dq, &tau[r * n..(r + 1) * n], &pb, &pa);
-        }
+            f(t, &dq, tau, &pb, &pa);
+        });
     }
 }
 
@@ -1871,9 +1853,9 @@ fn make_series(
             p,
             [before, after],
             stride,
-            |r, _, tau, pb, pa| {
+            |t, _, tau, pb, pa| {
                 for j in 0..n {
-                    validation[j].push((p.traj.t[r], tau[j], pb[j], pa[j]));
+                    validation[j].push((t, tau[j], pb[j], pa[j]));
                 }
             },
         );
@@ -1897,8 +1879,8 @@ fn predictions(
         t: Vec::with_capacity(rows),
         values: Vec::with_capacity(rows * 3 * n),
     };
-    for_predictions(base, layout, p, [before, after], 1, |r, _, tau, pb, pa| {
-        out.t.push(p.traj.t[r]);
+    for_predictions(base, layout, p, [before, after], 1, |t, _, tau, pb, pa| {
+        out.t.push(t);
         out.values.extend(tau.iter().chain(pb).chain(pa));
     });
     out
@@ -1908,19 +1890,18 @@ fn predictions(
 /// set (cut-off chosen on the training files only). Returns one outcome per file, in order.
 pub fn leave_one_out(
     arm: &ArmSource,
-    files: Vec<Trajectory>,
+    files: Vec<Log>,
     cfg: &Config,
 ) -> Result<Vec<Outcome>, IdentifyError> {
     let base = BaseModel::for_arm(arm);
     let table = arm.dh_table().ok();
-    let files: Vec<Arc<Trajectory>> = files.into_iter().map(Arc::new).collect();
     for t in &files {
         check_dof(t, &base)?;
     }
     let mut cache = PrepCache::default();
     let mut out = Vec::new();
     for k in 0..files.len() {
-        let train: Vec<Arc<Trajectory>> = files
+        let train: Vec<Log> = files
             .iter()
             .enumerate()
             .filter(|(i, _)| *i != k)
@@ -1971,8 +1952,8 @@ pub fn pooled_validation(outcomes: &[Outcome]) -> Option<(Errors, Errors)> {
 mod tests {
     use super::*;
 
-    fn log(len: usize) -> Arc<Trajectory> {
-        Arc::new(Trajectory {
+    fn log(len: usize) -> Log {
+        Log::from(crate::data::Trajectory {
             source: "log.csv".into(),
             dof: 1,
             t: (0..len).map(|k| k as f64 * 1e-3).collect(),
@@ -1998,7 +1979,10 @@ mod tests {
     fn short_training_sets_are_scanned_whole_long_ones_on_spread_pieces() {
         let short = vec![log(30_000), log(40_000)];
         let same = scan_pieces(&short);
-        assert!(same.iter().zip(&short).all(|(a, b)| Arc::ptr_eq(a, b)));
+        assert!(same
+            .iter()
+            .zip(&short)
+            .all(|(a, b)| a.key() == b.key() && a.len() == b.len()));
 
         let long = vec![log(900_000), log(300_000)];
         let pieces = scan_pieces(&long);
@@ -2009,13 +1993,14 @@ mod tests {
             "{total}"
         );
         // Proportional to the files, evenly spread over each, in order, rows copied intact.
-        let first: Vec<&Arc<Trajectory>> = pieces[..SCAN_PIECES].iter().collect();
+        let first: Vec<&Log> = pieces[..SCAN_PIECES].iter().collect();
         assert_eq!(first[0].len(), 3 * pieces[SCAN_PIECES].len());
-        let starts: Vec<f64> = first.iter().map(|p| p.q[0]).collect();
+        let starts: Vec<f64> = first.iter().map(|p| p.read(0, 1).q[0]).collect();
         assert!(starts[0] > 0.0 && starts[3] + first[3].len() as f64 <= 900_000.0);
         let step = starts[1] - starts[0];
         assert!(starts.windows(2).all(|w| w[1] - w[0] == step) && step > 200_000.0);
         assert!(first[1]
+            .read(0, first[1].len())
             .q
             .iter()
             .enumerate()

@@ -1,0 +1,310 @@
+//! A data file's samples as identification reads them: window by window, never all at once.
+//!
+//! [`Log::open`] streams the CSV (or `.csv.gz`) once, checking every cell (see [`crate::data`]).
+//! A log of up to [`SPILL_ROWS`] rows is kept in memory; a longer one is written, row by row as
+//! it is parsed, to an unnamed temporary file (removed by the OS when the log is dropped, even
+//! on a crash) in the canonical row order `t, q.., [dq..], [ddq..], [tau..]` as raw `f64`s, and
+//! windows are read back from it by position. Either way every consumer sees the same thing:
+//! [`Log::read`] copies rows `r0..r1` out as a [`Trajectory`], so memory use is that of the
+//! windows in flight, whatever the length of the log.
+
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::Path;
+use std::sync::Arc;
+
+use crate::data::{self, DataError, DataErrorKind, RowLayout, Trajectory};
+use crate::diag::Location;
+
+/// Rows kept in memory before a log is spilled to a temporary file (13.6 MB for a 6-joint log
+/// with torques).
+pub const SPILL_ROWS: usize = 1 << 17;
+
+/// Samples of one data file, in memory or spilled to disk; cheap to clone and to slice.
+#[derive(Debug, Clone)]
+pub struct Log {
+    /// Where it was read from (for error messages and reports).
+    pub source: String,
+    pub layout: RowLayout,
+    /// This log's rows of the store: `lo..hi`.
+    lo: usize,
+    hi: usize,
+    store: Arc<Store>,
+}
+
+#[derive(Debug)]
+enum Store {
+    /// Row-major rows of `layout.width()` values.
+    Memory(Vec<f64>),
+    /// The same rows as little-endian `f64`s in an unnamed temporary file.
+    Disk(File),
+}
+
+impl From<Trajectory> for Log {
+    fn from(t: Trajectory) -> Log {
+        let layout = t.layout();
+        let mut rows = Vec::with_capacity(t.len() * layout.width());
+        for k in 0..t.len() {
+            rows.push(t.t[k]);
+            rows.extend_from_slice(t.q_at(k));
+            for b in [t.dq_at(k), t.ddq_at(k), t.tau_at(k)].into_iter().flatten() {
+                rows.extend_from_slice(b);
+            }
+        }
+        Log {
+            source: t.source,
+            layout,
+            lo: 0,
+            hi: t.t.len(),
+            store: Arc::new(Store::Memory(rows)),
+        }
+    }
+}
+
+impl Log {
+    /// Reads a CSV (or gzip-compressed CSV) file; with `dof = Some(n)` its header must match an
+    /// `n`-joint arm. Spills to a temporary file beyond [`SPILL_ROWS`] rows.
+    pub fn open(path: &Path, dof: Option<usize>) -> Result<Log, DataError> {
+        Self::open_spilling(path, dof, SPILL_ROWS)
+    }
+
+    /// [`Log::open`] spilling beyond `spill_rows` rows (tests use a small value).
+    pub fn open_spilling(
+        path: &Path,
+        dof: Option<usize>,
+        spill_rows: usize,
+    ) -> Result<Log, DataError> {
+        let origin = path.display().to_string();
+        let mut mem: Vec<f64> = Vec::new();
+        let mut disk: Option<BufWriter<File>> = None;
+        let (layout, rows) = data::read_rows(data::open(path)?, &origin, dof, &mut |l, row| {
+            if let Some(w) = disk.as_mut() {
+                return write_f64s(w, row);
+            }
+            mem.extend_from_slice(row);
+            if mem.len() >= spill_rows.max(1) * l.width() {
+                let mut w = BufWriter::with_capacity(1 << 16, tempfile::tempfile()?);
+                write_f64s(&mut w, &mem)?;
+                mem = Vec::new();
+                disk = Some(w);
+            }
+            Ok(())
+        })?;
+        let store = match disk {
+            Some(w) => Store::Disk(w.into_inner().map_err(|e| DataError {
+                loc: Location::file(&origin),
+                kind: Box::new(DataErrorKind::Io(e.into_error())),
+            })?),
+            None => Store::Memory(mem),
+        };
+        Ok(Log {
+            source: origin,
+            layout,
+            lo: 0,
+            hi: rows,
+            store: Arc::new(store),
+        })
+    }
+
+    /// Number of samples.
+    pub fn len(&self) -> usize {
+        self.hi - self.lo
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.hi == self.lo
+    }
+
+    pub fn dof(&self) -> usize {
+        self.layout.dof
+    }
+
+    /// Whether the log was spilled to a temporary file.
+    pub fn spilled(&self) -> bool {
+        matches!(*self.store, Store::Disk(_))
+    }
+
+    /// An identity for caches: the same store and first row.
+    pub fn key(&self) -> (usize, usize) {
+        (Arc::as_ptr(&self.store) as usize, self.lo)
+    }
+
+    /// Rows `lo..hi` as a log of their own, named `source[rows lo+1..hi]` (no copy).
+    pub fn slice(&self, lo: usize, hi: usize) -> Log {
+        let hi = hi.min(self.len());
+        let lo = lo.min(hi);
+        Log {
+            source: format!("{}[rows {}..{}]", self.source, lo + 1, hi),
+            layout: self.layout,
+            lo: self.lo + lo,
+            hi: self.lo + hi,
+            store: self.store.clone(),
+        }
+    }
+
+    /// Calls `f` with each of rows `r0..r1` in turn (the canonical row, see [`RowLayout`]):
+    /// straight from memory, or read back from the temporary file in pieces.
+    pub fn rows(&self, r0: usize, r1: usize, mut f: impl FnMut(&[f64])) {
+        let w = self.layout.width();
+        let r1 = r1.min(self.len());
+        let (a, b) = (self.lo + r0.min(r1), self.lo + r1);
+        match &*self.store {
+            Store::Memory(v) => v[a * w..b * w].chunks_exact(w).for_each(f),
+            Store::Disk(file) => {
+                const ROWS: usize = 4096;
+                let mut bytes = vec![0u8; ROWS.min(b - a) * w * 8];
+                let mut vals = vec![0.0; ROWS.min(b - a) * w];
+                for c in (a..b).step_by(ROWS) {
+                    let m = ROWS.min(b - c);
+                    let bytes = &mut bytes[..m * w * 8];
+                    // The file was written by us and is not shared: a failed read is a broken
+                    // machine (disk error), not bad input.
+                    read_at(file, bytes, (c * w * 8) as u64).unwrap_or_else(|e| {
+                        panic!("reading back the temporary copy of {}: {e}", self.source)
+                    });
+                    for (v, b) in vals.iter_mut().zip(bytes.chunks_exact(8)) {
+                        *v = f64::from_le_bytes(b.try_into().expect("8 bytes"));
+                    }
+                    vals[..m * w].chunks_exact(w).for_each(&mut f);
+                }
+            }
+        }
+    }
+
+    /// Rows `r0..r1` as a trajectory (row-major blocks, named like the log).
+    pub fn read(&self, r0: usize, r1: usize) -> Trajectory {
+        let l = self.layout;
+        let (n, m) = (l.dof, r1.min(self.len()).saturating_sub(r0));
+        let block = |present: bool| present.then(|| Vec::with_capacity(m * n));
+        let mut t = Vec::with_capacity(m);
+        let mut q = Vec::with_capacity(m * n);
+        let (mut dq, mut ddq, mut tau) = (block(l.dq), block(l.ddq), block(l.tau));
+        self.rows(r0, r1, |row| {
+            t.push(row[0]);
+            q.extend_from_slice(&row[1..1 + n]);
+            let mut at = 1 + n;
+            for b in [&mut dq, &mut ddq, &mut tau].into_iter().flatten() {
+                b.extend_from_slice(&row[at..at + n]);
+                at += n;
+            }
+        });
+        Trajectory {
+            source: self.source.clone(),
+            dof: n,
+            t,
+            q,
+            dq,
+            ddq,
+            tau,
+        }
+    }
+
+    /// Time of sample `r`.
+    pub fn t(&self, r: usize) -> f64 {
+        let mut t = f64::NAN;
+        self.rows(r, r + 1, |row| t = row[0]);
+        t
+    }
+
+    /// First sample `r` for which `pred(t(r))` is false (`pred` true on a prefix), as
+    /// [`slice::partition_point`].
+    pub fn partition_point(&self, pred: impl Fn(f64) -> bool) -> usize {
+        let (mut lo, mut hi) = (0, self.len());
+        while lo < hi {
+            let mid = lo + (hi - lo) / 2;
+            if pred(self.t(mid)) {
+                lo = mid + 1;
+            } else {
+                hi = mid;
+            }
+        }
+        lo
+    }
+
+    /// Error unless there are at least `needed` samples.
+    pub fn require_samples(&self, needed: usize, purpose: &str) -> Result<(), DataError> {
+        if self.len() < needed {
+            return Err(DataError {
+                loc: Location::file(&self.source),
+                kind: Box::new(DataErrorKind::TooFewSamples {
+                    found: self.len(),
+                    needed,
+                    purpose: purpose.to_string(),
+                }),
+            });
+        }
+        Ok(())
+    }
+}
+
+fn write_f64s(w: &mut impl Write, values: &[f64]) -> std::io::Result<()> {
+    for v in values {
+        w.write_all(&v.to_le_bytes())?;
+    }
+    Ok(())
+}
+
+#[cfg(unix)]
+fn read_at(f: &File, buf: &mut [u8], offset: u64) -> std::io::Result<()> {
+    std::os::unix::fs::FileExt::read_exact_at(f, buf, offset)
+}
+
+#[cfg(windows)]
+fn read_at(f: &File, mut buf: &mut [u8], mut offset: u64) -> std::io::Result<()> {
+    while !buf.is_empty() {
+        match std::os::windows::fs::FileExt::seek_read(f, buf, offset)? {
+            0 => return Err(std::io::ErrorKind::UnexpectedEof.into()),
+            k => {
+                buf = &mut buf[k..];
+                offset += k as u64;
+            }
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn csv(rows: usize) -> String {
+        let mut s = String::from("t,q1,q2,tau2,tau1,dq1,dq2\n");
+        for k in 0..rows {
+            let t = k as f64 * 0.01;
+            s += &format!(
+                "{t},{},{},{},{},{},{}\n",
+                t.sin(),
+                t.cos(),
+                2.0 * t,
+                -t,
+                t.cos(),
+                -t.sin()
+            );
+        }
+        s
+    }
+
+    #[test]
+    fn spilled_and_held_logs_read_the_same_windows_as_the_loaded_trajectory() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("log.csv");
+        std::fs::write(&path, csv(1000)).unwrap();
+        let whole = Trajectory::from_path(&path, Some(2)).unwrap();
+        let held = Log::open(&path, Some(2)).unwrap();
+        let spilled = Log::open_spilling(&path, Some(2), 64).unwrap();
+        assert!(!held.spilled() && spilled.spilled());
+        for log in [&held, &spilled, &Log::from(whole.clone())] {
+            assert_eq!(log.len(), 1000);
+            assert_eq!(log.read(0, 1000), whole);
+            let mut part = whole.slice(130, 517);
+            part.source = whole.source.clone();
+            assert_eq!(log.read(130, 517), part);
+            assert_eq!(log.t(999), whole.t[999]);
+            assert_eq!(log.partition_point(|t| t < 5.0), 500);
+            let s = log.slice(100, 300);
+            assert_eq!(s.len(), 200);
+            assert_eq!(s.t(0), whole.t[100]);
+            assert_eq!(s.read(10, 20).tau, whole.slice(110, 120).tau);
+        }
+    }
+}
