@@ -1005,7 +1005,7 @@ fn channel_spectrum(p: &Psd, fs: f64) -> ChannelSpectrum {
 /// Visits every value of a collection with the callback it is given.
 type Visit<'a> = dyn FnMut(&mut dyn FnMut(f64)) + 'a;
 
-/// Pieces in which long signals are read (times, spectra).
+/// Pieces in which long signals are read (times, spectra): 65536 samples.
 const PIECE: usize = 1 << 16;
 
 /// The `k`-th smallest (0-based) of the values that `each` visits (all within `range`, the
@@ -1197,7 +1197,7 @@ pub struct States {
 }
 
 /// Grid samples up to which the spectrum of the cut-off choice is taken over the whole signal;
-/// a longer one is judged on evenly spaced pieces of [`PIECE`] samples (at most
+/// a longer one is judged on evenly spaced pieces of 65536 samples (at most
 /// [`SPECTRUM_PIECES`]), their periodograms averaged.
 pub const SPECTRUM_WHOLE: usize = 1 << 18;
 pub const SPECTRUM_PIECES: usize = 16;

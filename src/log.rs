@@ -6,7 +6,8 @@
 //! on a crash) in the canonical row order `t, q.., [dq..], [ddq..], [tau..]` as raw `f64`s, and
 //! windows are read back from it by position. Either way every consumer sees the same thing:
 //! [`Log::read`] copies rows `r0..r1` out as a [`Trajectory`], so memory use is that of the
-//! windows in flight, whatever the length of the log.
+//! windows in flight, whatever the length of the log. The store is a [`Table`] of `f64` rows,
+//! which identification also uses for its long outputs (validation predictions).
 
 use std::fs::File;
 use std::io::{BufWriter, Write};
@@ -20,24 +21,132 @@ use crate::diag::Location;
 /// with torques).
 pub const SPILL_ROWS: usize = 1 << 17;
 
+/// Rows of `width` values, appended in order ([`TableWriter`]) and then read back in any order:
+/// in memory up to a number of rows, beyond it in an unnamed temporary file.
+#[derive(Debug)]
+pub struct Table {
+    width: usize,
+    rows: usize,
+    store: Store,
+}
+
+#[derive(Debug)]
+enum Store {
+    /// Row-major rows.
+    Memory(Vec<f64>),
+    /// The same rows as little-endian `f64`s in an unnamed temporary file.
+    Disk(File),
+}
+
+/// Builds a [`Table`] row by row, spilling to a temporary file beyond `spill_rows` rows.
+#[derive(Debug)]
+pub struct TableWriter {
+    width: usize,
+    rows: usize,
+    spill_rows: usize,
+    mem: Vec<f64>,
+    disk: Option<BufWriter<File>>,
+}
+
+impl TableWriter {
+    pub fn new(width: usize, spill_rows: usize) -> Self {
+        TableWriter {
+            width,
+            rows: 0,
+            spill_rows: spill_rows.max(1),
+            mem: Vec::new(),
+            disk: None,
+        }
+    }
+
+    /// Appends one row (`width` values).
+    pub fn push(&mut self, row: &[f64]) -> std::io::Result<()> {
+        debug_assert_eq!(row.len(), self.width);
+        self.rows += 1;
+        if let Some(w) = self.disk.as_mut() {
+            return write_f64s(w, row);
+        }
+        self.mem.extend_from_slice(row);
+        if self.rows >= self.spill_rows {
+            let mut w = BufWriter::with_capacity(1 << 16, tempfile::tempfile()?);
+            write_f64s(&mut w, &self.mem)?;
+            self.mem = Vec::new();
+            self.disk = Some(w);
+        }
+        Ok(())
+    }
+
+    pub fn finish(self) -> std::io::Result<Table> {
+        let store = match self.disk {
+            Some(w) => Store::Disk(w.into_inner().map_err(|e| e.into_error())?),
+            None => Store::Memory(self.mem),
+        };
+        Ok(Table {
+            width: self.width,
+            rows: self.rows,
+            store,
+        })
+    }
+}
+
+impl Table {
+    pub fn len(&self) -> usize {
+        self.rows
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.rows == 0
+    }
+
+    pub fn width(&self) -> usize {
+        self.width
+    }
+
+    /// Whether the rows live in a temporary file.
+    pub fn spilled(&self) -> bool {
+        matches!(self.store, Store::Disk(_))
+    }
+
+    /// Calls `f` with each of rows `a..b` in turn: straight from memory, or read back from the
+    /// temporary file in pieces.
+    pub fn rows(&self, a: usize, b: usize, mut f: impl FnMut(&[f64])) {
+        let w = self.width;
+        let b = b.min(self.rows);
+        let a = a.min(b);
+        match &self.store {
+            Store::Memory(v) => v[a * w..b * w].chunks_exact(w).for_each(f),
+            Store::Disk(file) => {
+                const ROWS: usize = 4096;
+                let mut bytes = vec![0u8; ROWS.min(b - a) * w * 8];
+                let mut vals = vec![0.0; ROWS.min(b - a) * w];
+                for c in (a..b).step_by(ROWS) {
+                    let m = ROWS.min(b - c);
+                    let bytes = &mut bytes[..m * w * 8];
+                    // The file was written by us and is not shared: a failed read is a broken
+                    // machine (disk error), not bad input.
+                    read_at(file, bytes, (c * w * 8) as u64).unwrap_or_else(|e| {
+                        panic!("reading back a temporary file of this run: {e}")
+                    });
+                    for (v, b) in vals.iter_mut().zip(bytes.chunks_exact(8)) {
+                        *v = f64::from_le_bytes(b.try_into().expect("8 bytes"));
+                    }
+                    vals[..m * w].chunks_exact(w).for_each(&mut f);
+                }
+            }
+        }
+    }
+}
+
 /// Samples of one data file, in memory or spilled to disk; cheap to clone and to slice.
 #[derive(Debug, Clone)]
 pub struct Log {
     /// Where it was read from (for error messages and reports).
     pub source: String,
     pub layout: RowLayout,
-    /// This log's rows of the store: `lo..hi`.
+    /// This log's rows of the table: `lo..hi`.
     lo: usize,
     hi: usize,
-    store: Arc<Store>,
-}
-
-#[derive(Debug)]
-enum Store {
-    /// Row-major rows of `layout.width()` values.
-    Memory(Vec<f64>),
-    /// The same rows as little-endian `f64`s in an unnamed temporary file.
-    Disk(File),
+    table: Arc<Table>,
 }
 
 impl From<Trajectory> for Log {
@@ -56,7 +165,11 @@ impl From<Trajectory> for Log {
             layout,
             lo: 0,
             hi: t.t.len(),
-            store: Arc::new(Store::Memory(rows)),
+            table: Arc::new(Table {
+                width: layout.width(),
+                rows: t.t.len(),
+                store: Store::Memory(rows),
+            }),
         }
     }
 }
@@ -75,34 +188,25 @@ impl Log {
         spill_rows: usize,
     ) -> Result<Log, DataError> {
         let origin = path.display().to_string();
-        let mut mem: Vec<f64> = Vec::new();
-        let mut disk: Option<BufWriter<File>> = None;
+        let mut table: Option<TableWriter> = None;
         let (layout, rows) = data::read_rows(data::open(path)?, &origin, dof, &mut |l, row| {
-            if let Some(w) = disk.as_mut() {
-                return write_f64s(w, row);
-            }
-            mem.extend_from_slice(row);
-            if mem.len() >= spill_rows.max(1) * l.width() {
-                let mut w = BufWriter::with_capacity(1 << 16, tempfile::tempfile()?);
-                write_f64s(&mut w, &mem)?;
-                mem = Vec::new();
-                disk = Some(w);
-            }
-            Ok(())
+            table
+                .get_or_insert_with(|| TableWriter::new(l.width(), spill_rows))
+                .push(row)
         })?;
-        let store = match disk {
-            Some(w) => Store::Disk(w.into_inner().map_err(|e| DataError {
+        let table = table
+            .expect("at least one row")
+            .finish()
+            .map_err(|e| DataError {
                 loc: Location::file(&origin),
-                kind: Box::new(DataErrorKind::Io(e.into_error())),
-            })?),
-            None => Store::Memory(mem),
-        };
+                kind: Box::new(DataErrorKind::Io(e)),
+            })?;
         Ok(Log {
             source: origin,
             layout,
             lo: 0,
             hi: rows,
-            store: Arc::new(store),
+            table: Arc::new(table),
         })
     }
 
@@ -121,12 +225,12 @@ impl Log {
 
     /// Whether the log was spilled to a temporary file.
     pub fn spilled(&self) -> bool {
-        matches!(*self.store, Store::Disk(_))
+        self.table.spilled()
     }
 
-    /// An identity for caches: the same store and first row.
+    /// An identity for caches: the same table and first row.
     pub fn key(&self) -> (usize, usize) {
-        (Arc::as_ptr(&self.store) as usize, self.lo)
+        (Arc::as_ptr(&self.table) as usize, self.lo)
     }
 
     /// Rows `lo..hi` as a log of their own, named `source[rows lo+1..hi]` (no copy).
@@ -138,37 +242,14 @@ impl Log {
             layout: self.layout,
             lo: self.lo + lo,
             hi: self.lo + hi,
-            store: self.store.clone(),
+            table: self.table.clone(),
         }
     }
 
-    /// Calls `f` with each of rows `r0..r1` in turn (the canonical row, see [`RowLayout`]):
-    /// straight from memory, or read back from the temporary file in pieces.
-    pub fn rows(&self, r0: usize, r1: usize, mut f: impl FnMut(&[f64])) {
-        let w = self.layout.width();
+    /// Calls `f` with each of rows `r0..r1` in turn (the canonical row, see [`RowLayout`]).
+    pub fn rows(&self, r0: usize, r1: usize, f: impl FnMut(&[f64])) {
         let r1 = r1.min(self.len());
-        let (a, b) = (self.lo + r0.min(r1), self.lo + r1);
-        match &*self.store {
-            Store::Memory(v) => v[a * w..b * w].chunks_exact(w).for_each(f),
-            Store::Disk(file) => {
-                const ROWS: usize = 4096;
-                let mut bytes = vec![0u8; ROWS.min(b - a) * w * 8];
-                let mut vals = vec![0.0; ROWS.min(b - a) * w];
-                for c in (a..b).step_by(ROWS) {
-                    let m = ROWS.min(b - c);
-                    let bytes = &mut bytes[..m * w * 8];
-                    // The file was written by us and is not shared: a failed read is a broken
-                    // machine (disk error), not bad input.
-                    read_at(file, bytes, (c * w * 8) as u64).unwrap_or_else(|e| {
-                        panic!("reading back the temporary copy of {}: {e}", self.source)
-                    });
-                    for (v, b) in vals.iter_mut().zip(bytes.chunks_exact(8)) {
-                        *v = f64::from_le_bytes(b.try_into().expect("8 bytes"));
-                    }
-                    vals[..m * w].chunks_exact(w).for_each(&mut f);
-                }
-            }
-        }
+        self.table.rows(self.lo + r0.min(r1), self.lo + r1, f);
     }
 
     /// Rows `r0..r1` as a trajectory (row-major blocks, named like the log).

@@ -165,16 +165,21 @@ fn prediction_csv(p: &Predictions, w: &mut dyn std::io::Write) -> std::io::Resul
         }
     }
     writeln!(w)?;
-    for i in 0..p.len() {
+    let mut res = Ok(());
+    p.rows(0, p.len(), |t, tau, before, after| {
         // `{}` prints the shortest representation that parses back to the same f64, so t and tau
         // are the values read from the validation file.
-        write!(w, "{}", p.t[i])?;
-        let (tau, before, after) = p.row(i);
-        for v in tau.iter().chain(before).chain(after) {
-            write!(w, ",{v}")?;
+        if res.is_ok() {
+            res = (|| {
+                write!(w, "{t}")?;
+                for v in tau.iter().chain(before).chain(after) {
+                    write!(w, ",{v}")?;
+                }
+                writeln!(w)
+            })();
         }
-        writeln!(w)?;
-    }
+    });
+    res?;
     w.flush()
 }
 

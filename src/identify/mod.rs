@@ -39,6 +39,8 @@ pub mod base;
 pub mod ls;
 pub mod synth;
 
+use std::sync::Arc;
+
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 use serde::Serialize;
@@ -46,7 +48,7 @@ use serde::Serialize;
 use crate::arms::ArmSource;
 use crate::derivative::{self, DerivativeReport, Estimator, Filter, States};
 use crate::effects::{self, Effect, EffectsSpec, Rules, Scales, Selection, Term};
-use crate::log::Log;
+use crate::log::{Log, Table, TableWriter, SPILL_ROWS};
 use base::BaseModel;
 use ls::Accumulator;
 
@@ -75,6 +77,8 @@ pub enum IdentifyError {
     Rank(#[from] RankError),
     #[error("{0}")]
     Effects(String),
+    #[error("cannot write a temporary file (validation predictions of a long log): {0} — free space in the temporary directory or point TMPDIR elsewhere")]
+    Spill(std::io::Error),
 }
 
 /// Rank-deficient excitation: some parameters cannot be told apart with the given data.
@@ -1143,30 +1147,30 @@ pub struct Series {
     pub validation: Vec<Vec<(f64, f64, f64, f64)>>,
 }
 
-/// The rows of `validation_prediction.csv`, stored flat (a long validation log costs 3n + 1
-/// doubles a sample): per validation sample used, its time, then the measured τ and the torques
-/// predicted by the declared (`before`) and augmented (`after`) models, n each.
-#[derive(Debug, Clone, Default)]
+/// The rows of `validation_prediction.csv`: per validation sample used, its time, then the
+/// measured τ and the torques predicted by the declared (`before`) and augmented (`after`)
+/// models, n each — in a [`Table`] (a long validation log's spill to a temporary file).
+#[derive(Debug, Clone)]
 pub struct Predictions {
     pub dof: usize,
-    pub t: Vec<f64>,
-    values: Vec<f64>,
+    table: Arc<Table>,
 }
 
 impl Predictions {
     pub fn len(&self) -> usize {
-        self.t.len()
+        self.table.len()
     }
 
     pub fn is_empty(&self) -> bool {
-        self.t.is_empty()
+        self.table.is_empty()
     }
 
-    /// Row `i`: `(tau, before, after)`.
-    pub fn row(&self, i: usize) -> (&[f64], &[f64], &[f64]) {
+    /// Calls `f(t, tau, before, after)` for rows `a..b` in order.
+    pub fn rows(&self, a: usize, b: usize, mut f: impl FnMut(f64, &[f64], &[f64], &[f64])) {
         let n = self.dof;
-        let v = &self.values[i * 3 * n..(i + 1) * 3 * n];
-        (&v[..n], &v[n..2 * n], &v[2 * n..])
+        self.table.rows(a, b, |r| {
+            f(r[0], &r[1..1 + n], &r[1 + n..1 + 2 * n], &r[1 + 2 * n..])
+        });
     }
 }
 
@@ -1716,7 +1720,9 @@ pub fn run_prepared(
         .collect();
 
     let series = make_series(base, &layout, train, val, &before, &after);
-    let predictions = val.map(|p| predictions(base, &layout, p, &before, &after));
+    let predictions = val
+        .map(|p| predictions(base, &layout, p, &before, &after))
+        .transpose()?;
     let sigma = w.iter().map(|w| 1.0 / w).collect();
     Ok(Outcome {
         arm: arm.to_string(),
@@ -1872,18 +1878,27 @@ fn predictions(
     p: &Prepared,
     before: &ModelResult,
     after: &ModelResult,
-) -> Predictions {
-    let (n, rows) = (layout.dof, p.raw_keep.1 - p.raw_keep.0);
-    let mut out = Predictions {
-        dof: n,
-        t: Vec::with_capacity(rows),
-        values: Vec::with_capacity(rows * 3 * n),
-    };
+) -> Result<Predictions, IdentifyError> {
+    let n = layout.dof;
+    let mut table = TableWriter::new(1 + 3 * n, SPILL_ROWS);
+    let (mut row, mut failed) = (Vec::with_capacity(1 + 3 * n), None);
     for_predictions(base, layout, p, [before, after], 1, |t, _, tau, pb, pa| {
-        out.t.push(t);
-        out.values.extend(tau.iter().chain(pb).chain(pa));
+        row.clear();
+        row.push(t);
+        row.extend(tau.iter().chain(pb).chain(pa));
+        if let Err(e) = table.push(&row) {
+            failed.get_or_insert(e);
+        }
     });
-    out
+    let table = match failed {
+        Some(e) => Err(e),
+        None => table.finish(),
+    }
+    .map_err(IdentifyError::Spill)?;
+    Ok(Predictions {
+        dof: n,
+        table: Arc::new(table),
+    })
 }
 
 /// Leave-one-file-out study: each file in turn is the validation file, the others the training
@@ -1932,14 +1947,13 @@ pub fn pooled_validation(outcomes: &[Outcome]) -> Option<(Errors, Errors)> {
     let mut tss = vec![0.0; n];
     for o in outcomes {
         let p = o.predictions.as_ref()?;
-        for i in 0..p.len() {
-            let (tau, before, after) = p.row(i);
+        p.rows(0, p.len(), |_, tau, before, after| {
             for j in 0..n {
                 acc[0][j] += (before[j] - tau[j]).powi(2);
                 acc[1][j] += (after[j] - tau[j]).powi(2);
                 tss[j] += tau[j].powi(2);
             }
-        }
+        });
     }
     let mk = |s: &Vec<f64>| Errors {
         per_joint: (0..n).map(|j| (s[j] / tss[j]).sqrt()).collect(),
