@@ -54,6 +54,8 @@ pub enum DataErrorKind {
     Io(std::io::Error),
     /// The gzip stream is corrupt or truncated.
     Gzip(std::io::Error),
+    /// The temporary copy of a long file could not be written (see [`crate::log`]).
+    TempFile(std::io::Error),
     Empty {
         expected: String,
     },
@@ -113,6 +115,7 @@ impl fmt::Display for DataErrorKind {
         match self {
             Io(e) => write!(f, "cannot read the file: {e} — check the path and permissions"),
             Gzip(e) => write!(f, "corrupt or truncated gzip data: {e} — re-export or re-compress the file (`gzip -t` checks it)"),
+            TempFile(e) => write!(f, "cannot write the temporary copy of this long file: {e} — free space in the temporary directory or point TMPDIR elsewhere"),
             Empty { expected } => write!(f, "the file is empty — expected a header line with columns {expected}, then one row per sample"),
             HeaderOnly => write!(f, "the file has a header but no data rows — add at least one sample row"),
             EmptyColumnName { expected } => write!(f, "empty column name (a trailing comma?) — expected columns {expected}"),
@@ -349,8 +352,8 @@ impl RowLayout {
 
 /// Streams a CSV (or gzip-compressed CSV) source row by row into `sink`, checking every cell as
 /// [`Trajectory::from_reader`] does; returns the layout and the number of rows. Nothing but the
-/// current row is held, so a log of any length reads in constant memory. `sink` errors (e.g. a
-/// full disk) are reported as I/O errors of `origin`.
+/// current row is held, so a log of any length reads in constant memory. `sink` errors are
+/// reported as failures to write a temporary copy of `origin` (what the sinks that can fail do).
 pub fn read_rows<R: Read>(
     reader: R,
     origin: &str,
@@ -739,7 +742,7 @@ fn parse<R: Read>(
         }
         sink(&layout, &row).map_err(|e| DataError {
             loc: Location::file(file),
-            kind: Box::new(DataErrorKind::Io(e)),
+            kind: Box::new(DataErrorKind::TempFile(e)),
         })?;
         (rows, prev) = (rows + 1, tk);
     }

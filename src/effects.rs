@@ -9,6 +9,12 @@
 //! | `offset` | `1` | N·m |
 //! | `armature` | `q̈ⱼ` (rotor inertia reflected through the gear) | kg·m² |
 //! | `spring` | `qⱼ` (linear spring; its rest angle appears as an offset) | N·m/rad |
+//! | `loadcoulomb` | `tanh(q̇ⱼ / vⱼ) · |τ̂ⱼ|`, τ̂ⱼ the rigid-body torque of joint j (load-dependent friction: a gear's friction grows with the torque it transmits) | N·m per N·m |
+//!
+//! `loadcoulomb` is bilinear (its column holds the rigid-body parameters), so it is fitted in two
+//! stages: τ̂ comes from the rigid-body part of the model selected without it, held fixed; the
+//! column is then filtered and tested like any other ([`Effect::LOADED`] are searched after the
+//! rest, see [`crate::identify::run_prepared`]).
 //!
 //! Asymmetric Coulomb friction (`Fc⁺` for q̇ > 0, `Fc⁻` for q̇ < 0) is `coulomb` + `offset` in
 //! disguise: `Fc⁺·[q̇>0] − Fc⁻·[q̇<0] = ½(Fc⁺+Fc⁻)·sgn q̇ + ½(Fc⁺−Fc⁻)`, so the report derives it
@@ -47,6 +53,8 @@ pub enum Effect {
     Offset,
     Armature,
     Spring,
+    #[serde(rename = "loadcoulomb")]
+    LoadCoulomb,
 }
 
 impl Effect {
@@ -60,6 +68,20 @@ impl Effect {
         Effect::Spring,
     ];
 
+    /// Effects whose column needs the rigid-body torque of a first-stage fit: searched after
+    /// [`Effect::ALL`], with that fit's parameters.
+    pub const LOADED: [Effect; 1] = [Effect::LoadCoulomb];
+
+    /// Whether the column needs the rigid-body torque (see [`Effect::LOADED`]).
+    pub fn needs_load(self) -> bool {
+        Effect::LOADED.contains(&self)
+    }
+
+    /// Every effect, by name.
+    pub fn named() -> impl Iterator<Item = Effect> {
+        Effect::ALL.into_iter().chain(Effect::LOADED)
+    }
+
     pub fn name(self) -> &'static str {
         match self {
             Effect::Viscous => "viscous",
@@ -68,14 +90,13 @@ impl Effect {
             Effect::Offset => "offset",
             Effect::Armature => "armature",
             Effect::Spring => "spring",
+            Effect::LoadCoulomb => "loadcoulomb",
         }
     }
 
     /// Parses a name as used on the command line.
     pub fn parse(s: &str) -> Option<Effect> {
-        Effect::ALL
-            .into_iter()
-            .find(|e| e.name() == s.trim().to_ascii_lowercase())
+        Effect::named().find(|e| e.name() == s.trim().to_ascii_lowercase())
     }
 
     /// Unit of the coefficient for a revolute joint.
@@ -85,11 +106,13 @@ impl Effect {
             Effect::Coulomb | Effect::Stribeck | Effect::Offset => "N·m",
             Effect::Armature => "kg·m²",
             Effect::Spring => "N·m/rad",
+            Effect::LoadCoulomb => "N·m/N·m",
         }
     }
 
-    /// The regressor column of this effect for one joint's state.
-    pub fn column(self, q: f64, dq: f64, ddq: f64, s: &Scales) -> f64 {
+    /// The regressor column of this effect for one joint's state; `load` is the joint's
+    /// rigid-body torque (used by [`Effect::LOADED`] only).
+    pub fn column(self, q: f64, dq: f64, ddq: f64, load: f64, s: &Scales) -> f64 {
         match self {
             Effect::Viscous => dq,
             Effect::Coulomb => (dq / s.coulomb_v).tanh(),
@@ -97,6 +120,7 @@ impl Effect {
             Effect::Offset => 1.0,
             Effect::Armature => ddq,
             Effect::Spring => q,
+            Effect::LoadCoulomb => (dq / s.coulomb_v).tanh() * load.abs(),
         }
     }
 }
@@ -149,7 +173,10 @@ pub fn parse_list(spec: &str, dof: usize) -> Result<EffectsSpec, String> {
         "none" | "" => return Ok(EffectsSpec::Fixed(Vec::new())),
         _ => {}
     }
-    let known = Effect::ALL.map(|e| e.name()).join(", ");
+    let known = Effect::named()
+        .map(|e| e.name())
+        .collect::<Vec<_>>()
+        .join(", ");
     let mut terms = Vec::new();
     for item in s.split(',') {
         let item = item.trim();
@@ -224,7 +251,7 @@ pub fn structural_merges(
             let (s, i) = (r / dof, r % dof);
             if i == t.joint {
                 let [q, dq, ddq] = &states[s];
-                t.effect.column(q[i], dq[i], ddq[i], &unit)
+                t.effect.column(q[i], dq[i], ddq[i], 1.0, &unit)
             } else {
                 0.0
             }
@@ -310,6 +337,9 @@ pub struct Selection {
     pub stopped_on: Option<Evidence>,
     /// Candidates skipped because they are collinear with the model in this data.
     pub collinear: Vec<String>,
+    /// Effects added in the first stage that stood in for a load-dependent one and no longer
+    /// pass the test once it is in the model (removed).
+    pub dropped: Vec<String>,
 }
 
 /// The residual → effect loop (see the module docs). `declared` terms are always in the model;
@@ -439,6 +469,7 @@ pub fn select(
         terms,
         stopped_on,
         collinear,
+        dropped: Vec::new(),
     })
 }
 
@@ -479,9 +510,9 @@ mod tests {
     #[test]
     fn coulomb_column_is_a_smoothed_sign() {
         let s = Scales::from_rms_velocity(1.0);
-        assert!((Effect::Coulomb.column(0.0, 0.5, 0.0, &s) - 1.0).abs() < 1e-12);
-        assert!((Effect::Coulomb.column(0.0, -0.5, 0.0, &s) + 1.0).abs() < 1e-12);
-        assert_eq!(Effect::Coulomb.column(0.0, 0.0, 0.0, &s), 0.0);
-        assert!(Effect::Stribeck.column(0.0, 1.0, 0.0, &s).abs() < 1e-30);
+        assert!((Effect::Coulomb.column(0.0, 0.5, 0.0, 0.0, &s) - 1.0).abs() < 1e-12);
+        assert!((Effect::Coulomb.column(0.0, -0.5, 0.0, 0.0, &s) + 1.0).abs() < 1e-12);
+        assert_eq!(Effect::Coulomb.column(0.0, 0.0, 0.0, 0.0, &s), 0.0);
+        assert!(Effect::Stribeck.column(0.0, 1.0, 0.0, 0.0, &s).abs() < 1e-30);
     }
 }

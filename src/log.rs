@@ -199,7 +199,7 @@ impl Log {
             .finish()
             .map_err(|e| DataError {
                 loc: Location::file(&origin),
-                kind: Box::new(DataErrorKind::Io(e)),
+                kind: Box::new(DataErrorKind::TempFile(e)),
             })?;
         Ok(Log {
             source: origin,

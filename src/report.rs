@@ -305,6 +305,13 @@ pub fn markdown(o: &Outcome, command: &str, plots: &[String]) -> String {
     for (t, w) in &o.merged {
         let _ = writeln!(m, "\n`{t}` is not identifiable: its column equals a combination of {} for every motion, so it is merged there (not reported as an effect).", w.join(", "));
     }
+    if !o.selection.dropped.is_empty() {
+        let _ = writeln!(
+            m,
+            "\nDropped (found first, then redundant once a load-dependent term was in the model): {}.",
+            o.selection.dropped.join(", ")
+        );
+    }
     if !o.selection.collinear.is_empty() {
         let _ = writeln!(
             m,

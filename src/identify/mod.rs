@@ -338,6 +338,9 @@ pub struct Layout {
     /// Per joint, the base columns that can be non-zero in its rows (structurally zero ones
     /// are left out of its accumulators).
     pub base_active: Vec<Vec<usize>>,
+    /// Coefficients (one per column, zero on the [`Effect::LOADED`] ones) of the first-stage
+    /// model whose predicted torque the load-dependent columns use; empty when there are none.
+    pub load: Vec<f64>,
 }
 
 impl Layout {
@@ -426,9 +429,29 @@ impl<'a> Rows<'a> {
         for j in 0..n {
             out[j * nc..j * nc + nb].copy_from_slice(&self.yb[j * nb..(j + 1) * nb]);
         }
-        for (i, t) in self.layout.terms.iter().enumerate() {
+        let terms = &self.layout.terms;
+        for (i, t) in terms
+            .iter()
+            .enumerate()
+            .filter(|(_, t)| !t.effect.needs_load())
+        {
             let j = t.joint;
-            out[j * nc + nb + i] = t.effect.column(q[j], dq[j], ddq[j], &self.layout.scales[j]);
+            out[j * nc + nb + i] =
+                t.effect
+                    .column(q[j], dq[j], ddq[j], 0.0, &self.layout.scales[j]);
+        }
+        // Load-dependent columns: the first-stage model's torque from the columns just filled.
+        let load = &self.layout.load;
+        for (i, t) in terms
+            .iter()
+            .enumerate()
+            .filter(|(_, t)| t.effect.needs_load())
+        {
+            let j = t.joint;
+            let tau = ls::dot(&out[j * nc..(j + 1) * nc], load);
+            out[j * nc + nb + i] =
+                t.effect
+                    .column(q[j], dq[j], ddq[j], tau, &self.layout.scales[j]);
         }
     }
 }
@@ -1495,7 +1518,14 @@ fn make_layout(
                 })
                 .collect(),
         ),
-        EffectsSpec::Fixed(t) => (t.clone(), Vec::new()),
+        // Load-dependent terms come in the second stage (see `run_prepared`).
+        EffectsSpec::Fixed(t) => (
+            t.iter()
+                .copied()
+                .filter(|t| !t.effect.needs_load())
+                .collect(),
+            Vec::new(),
+        ),
     };
     let names = base.names();
     // Random states for the structural checks (merged effects, zero base columns per joint).
@@ -1533,6 +1563,7 @@ fn make_layout(
         terms,
         scales,
         base_active,
+        load: Vec::new(),
     };
     (layout, declared, searched, merged)
 }
@@ -1588,8 +1619,11 @@ pub fn run_prepared(
             terms: declared.clone(),
             stopped_on: None,
             collinear: Vec::new(),
+            dropped: Vec::new(),
         },
     };
+    let (layout, problem, selection, declared) =
+        load_stage(base, train, cfg, layout, problem, selection, declared)?;
 
     // The models reported: rigid, the final one, and rigid → +declared → +each added effect.
     let mut added_steps: Vec<Vec<Term>> = Vec::new();
@@ -1752,6 +1786,118 @@ pub fn run_prepared(
         series,
         predictions,
     })
+}
+
+/// The second stage for the load-dependent effects ([`Effect::LOADED`]): their columns use the
+/// torque the first stage's model predicts (rigid body and effects, parameters held fixed: the
+/// joint torque the gear transmits), so the problem is rebuilt with them and they are searched
+/// (or, declared, added) on top of the first stage's model. Without any accepted or declared, the first stage is returned as it
+/// is. (The fixed parameters saw every training block, so the candidates' held-out test is
+/// slightly optimistic — by one global, smooth estimate, not a per-block fit.)
+#[allow(clippy::type_complexity)]
+fn load_stage(
+    base: &BaseModel,
+    train: &[Prepared],
+    cfg: &Config,
+    layout: Layout,
+    problem: Problem,
+    first: Selection,
+    declared: Vec<Term>,
+) -> Result<(Layout, Problem, Selection, Vec<Term>), IdentifyError> {
+    let n = base.dof();
+    let (fixed, search): (Vec<Term>, Vec<Term>) = match &cfg.effects {
+        EffectsSpec::Auto => (
+            Vec::new(),
+            Effect::LOADED
+                .iter()
+                .flat_map(|&effect| (0..n).map(move |joint| Term { effect, joint }))
+                .collect(),
+        ),
+        EffectsSpec::Fixed(t) => (
+            t.iter()
+                .copied()
+                .filter(|t| t.effect.needs_load())
+                .collect(),
+            Vec::new(),
+        ),
+    };
+    if fixed.is_empty() && search.is_empty() {
+        return Ok((layout, problem, first, declared));
+    }
+    let subset = problem.subset(&first.terms);
+    let w = problem.weights(&subset).map_err(|e| with_hint(e, train))?;
+    let fit = problem.fit(&subset, &w).map_err(|e| with_hint(e, train))?;
+    let mut l2 = layout.clone();
+    l2.terms.extend(fixed.iter().chain(&search));
+    l2.terms.sort();
+    l2.terms.dedup();
+    // The new terms sort last (their effects are the last variants): first-stage columns keep
+    // their indices.
+    l2.load = vec![0.0; l2.ncols()];
+    for (&c, &x) in subset.iter().zip(&fit.x) {
+        l2.load[c] = x;
+    }
+    let p2 = Problem::build(base, l2.clone(), train, cfg.blocks);
+    let start: Vec<Term> = first.terms.iter().chain(&fixed).copied().collect();
+    let second = effects::select(&p2, &start, &search, &cfg.rules)?;
+    if fixed.is_empty() && second.steps.is_empty() {
+        let mut first = first;
+        first.collinear.extend(second.collinear);
+        // Why the second stage stopped is the last word if it had the better candidate.
+        if let Some(s) = second.stopped_on {
+            if first
+                .stopped_on
+                .as_ref()
+                .map_or(true, |f| s.heldout_gain > f.heldout_gain)
+            {
+                first.stopped_on = Some(s);
+            }
+        }
+        return Ok((layout, problem, first, declared));
+    }
+    // A first-stage effect may have stood in for the load-dependent one (a Coulomb term for
+    // the mean of load-dependent friction): each must pass the same test again against the
+    // final model without it, or it goes (last added first).
+    let mut terms = second.terms;
+    let mut dropped = Vec::new();
+    let once = Rules {
+        max_steps: 1,
+        ..cfg.rules
+    };
+    for s in first.steps.iter().rev() {
+        let without: Vec<Term> = terms.iter().copied().filter(|t| *t != s.added).collect();
+        if effects::select(&p2, &without, &[s.added], &once)?
+            .steps
+            .is_empty()
+        {
+            terms = without;
+            dropped.push(s.added);
+        }
+    }
+    let declared: Vec<Term> = declared.into_iter().chain(fixed).collect();
+    let mut model: Vec<String> = declared.iter().map(Term::label).collect();
+    let mut steps = Vec::new();
+    for mut s in first.steps.into_iter().chain(second.steps) {
+        if !dropped.contains(&s.added) {
+            model.push(s.label.clone());
+            s.model = model.clone();
+            steps.push(s);
+        }
+    }
+    let mut collinear = first.collinear;
+    collinear.extend(second.collinear);
+    Ok((
+        l2,
+        p2,
+        Selection {
+            steps,
+            terms,
+            stopped_on: second.stopped_on,
+            collinear,
+            dropped: dropped.iter().map(Term::label).collect(),
+        },
+        declared,
+    ))
 }
 
 /// Adds which joints hardly move to a rank error.

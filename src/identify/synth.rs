@@ -241,15 +241,19 @@ pub fn generate(spec: &Spec) -> Trajectory {
             (qs[j], dqs[j], ddqs[j]) = traj.eval(j, tk);
         }
         model.inverse_dynamics(&mut ws, &qs, &dqs, &ddqs, &spec.p, &mut ts);
+        let rigid = ts.clone();
         for (term, v) in &spec.effects {
             let j = term.joint;
+            let sign = dqs[j].signum() * f64::from(u8::from(dqs[j] != 0.0));
             let col = match term.effect {
-                Effect::Coulomb => dqs[j].signum() * f64::from(u8::from(dqs[j] != 0.0)),
+                Effect::Coulomb => sign,
+                Effect::LoadCoulomb => sign * rigid[j].abs(),
                 Effect::Stribeck => dqs[j].signum() * (-(dqs[j] / 0.1).powi(2)).exp(),
                 e => e.column(
                     qs[j],
                     dqs[j],
                     ddqs[j],
+                    rigid[j],
                     &crate::effects::Scales {
                         coulomb_v: 1.0,
                         stribeck_v: 1.0,

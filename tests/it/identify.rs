@@ -247,8 +247,9 @@ fn dfki_leave_one_out() {
     }
     let (b, a) = identify::pooled_validation(&outs).unwrap();
     println!("pooled validation: before {b:?}\n                   after  {a:?}");
-    // 0.366 before predictions went through the filtered rows (0.293 with them).
-    assert!(a.overall < 0.6 * b.overall && a.overall < 0.31, "{a:?}");
+    // The bar: 0.29. Measured 0.2892 (0.366 before predictions went through the
+    // filtered rows, 0.2929 before the second stage found load-dependent friction in one fold).
+    assert!(a.overall < 0.6 * b.overall && a.overall < 0.29, "{a:?}");
 }
 
 // --- no effect on clean data ---------------------------------------------------------------
@@ -342,6 +343,47 @@ fn stribeck_friction_is_found_on_the_right_joint() {
         after < 0.013 && after < 0.7 * before,
         "validation {before} -> {after}"
     );
+}
+
+/// Load-dependent friction (synthetic: `μ·sgn(q̇)·|τ_rigid|`, gear friction growing with the
+/// transmitted torque) is found on its joint in the second stage, coefficient within 5 %, and
+/// the validation error at least halves. Not to the 1 % noise: the cut-off scan runs before
+/// the second stage, judged with first-stage models that cannot follow the load-scaled jumps,
+/// and picks filtered predictions (measured 5.8 % → 2.1 % on joint 2's seed; 1.1 % for plain
+/// Coulomb friction of the same size, where the scan's models have the right column).
+/// The first stage stands in for it with a
+/// Coulomb term on the same joint; that term is dropped when redundant, but may stay small
+/// (the second stage's load is the first stage's torque, Coulomb included): measured μ = 0.149
+/// of 0.15 with nothing else on joint 2, 0.097 of 0.1 next to a 0.017 N·m Coulomb on joint 1.
+#[test]
+fn load_dependent_friction_is_found_in_the_second_stage() {
+    for (joint, mu, seed) in [(1, 0.15, 48), (0, 0.1, 49)] {
+        let spec = Spec::new(other_planar(), seed).with_effect(Effect::LoadCoulomb, joint, mu);
+        let (o, _) = run_synth(&spec, &Config::default());
+        let term = |effect| Term { effect, joint }.label();
+        let label = term(Effect::LoadCoulomb);
+        let f = found(&o);
+        assert!(
+            f.contains(&label) && f.iter().all(|l| *l == label || *l == term(Effect::Coulomb)),
+            "{label}: found {f:?}"
+        );
+        let e = coef(&o, &label);
+        assert!((e - mu).abs() < 0.05 * mu, "{label} = {e} (truth {mu})");
+        // Absent (NaN) or small.
+        let coulomb = coef(&o, &term(Effect::Coulomb));
+        assert!(
+            coulomb.is_nan() || coulomb.abs() < 0.25 * mu,
+            "proxy Coulomb {coulomb}"
+        );
+        let (before, after) = (
+            o.before.validation.as_ref().unwrap().overall,
+            o.after.validation.as_ref().unwrap().overall,
+        );
+        assert!(
+            after < 0.025 && after < 0.5 * before,
+            "{label}: validation {before} -> {after}"
+        );
+    }
 }
 
 /// Study (`cargo test --release -- --ignored selection_power_and_false_positives`): false
