@@ -1045,13 +1045,16 @@ fn kth_smallest(k: usize, range: (f64, f64), each: &mut Visit) -> f64 {
             return vals[k - below];
         }
         let mut acc = below;
-        for b in 0..BINS {
-            if acc + count[b] > k {
-                (lo, hi, below) = (vmin[b], vmax[b], acc);
-                break;
+        let Some(b) = (0..BINS).find(|&b| {
+            let here = acc + count[b] > k;
+            if !here {
+                acc += count[b];
             }
-            acc += count[b];
-        }
+            here
+        }) else {
+            return hi; // unreachable: rank k lies in [lo, hi]
+        };
+        (lo, hi, below) = (vmin[b], vmax[b], acc);
     }
 }
 
@@ -1237,139 +1240,53 @@ impl Estimator {
         }
         let grid = grid_for_log(log, &sampling);
         let fs = 1.0 / grid.dt;
-        let mut e = Estimator {
+        let reader = Reader {
             grid,
-            filter: Filter::lowpass(opts.method, 0.1 * fs, fs)?,
-            report: DerivativeReport {
-                method: opts.method,
-                filter: String::new(),
-                cutoff_hz: f64::NAN,
-                cutoff_auto: opts.cutoff_hz.is_none(),
-                per_channel: Vec::new(),
-                sampling,
-                resampled: !sampling.uniform,
-                dq_source: String::new(),
-                ddq_source: String::new(),
-                fs_hz: fs,
-            },
-            use_dq,
-            given,
+            uniform: sampling.uniform,
         };
-        let fc = match opts.cutoff_hz {
-            Some(fc) => fc,
-            None => {
-                let (fc, per) = e.auto_cutoff(log);
-                e.report.per_channel = per;
-                fc
-            }
+        let (fc, per_channel) = match opts.cutoff_hz {
+            Some(fc) => (fc, Vec::new()),
+            None => reader.auto_cutoff(log, use_dq && !given),
         };
-        e.filter = Filter::lowpass(opts.method, fc, fs)?;
+        let filter = Filter::lowpass(opts.method, fc, fs)?;
         let (dq_source, ddq_source) = match (use_dq, given) {
             (_, true) => ("file (as given)", "file (as given)"),
             (true, false) => ("file, filtered", "differentiated filtered dq"),
             (false, false) => ("differentiated q", "differentiated q"),
         };
-        e.report.filter = e.filter.as_zero_phase().describe();
-        e.report.cutoff_hz = fc;
-        e.report.dq_source = dq_source.into();
-        e.report.ddq_source = ddq_source.into();
-        Ok(e)
-    }
-
-    /// The spectrum's cut-off ([`auto_cutoff`]) over the positions, and over the q̇ channels
-    /// if they are filtered (integrated, so their spectrum is judged like q's by one rule).
-    fn auto_cutoff(&self, log: &Log) -> (f64, Vec<ChannelSpectrum>) {
-        let n = self.grid.n;
-        let pieces: Vec<(usize, usize)> = if n <= SPECTRUM_WHOLE {
-            vec![(0, n)]
-        } else {
-            let count = (n / PIECE).min(SPECTRUM_PIECES);
-            let gap = (n - count * PIECE) / count;
-            (0..count)
-                .map(|i| {
-                    let a = gap / 2 + i * (PIECE + gap);
-                    (a, a + PIECE)
-                })
-                .collect()
+        let report = DerivativeReport {
+            method: opts.method,
+            filter: filter.as_zero_phase().describe(),
+            cutoff_hz: fc,
+            cutoff_auto: opts.cutoff_hz.is_none(),
+            per_channel,
+            sampling,
+            resampled: !sampling.uniform,
+            dq_source: dq_source.into(),
+            ddq_source: ddq_source.into(),
+            fs_hz: fs,
         };
-        let integrate_dq = self.use_dq && !self.given;
-        let mut psd: Vec<Option<Psd>> = Vec::new();
-        for &(lo, hi) in &pieces {
-            let w = self.rows_for(log, lo, hi);
-            let mut chans = self.on_grid(&w, &w.rows.q, lo, hi);
-            if let (Some(d), true) = (&w.rows.dq, integrate_dq) {
-                for x in self.on_grid(&w, d, lo, hi) {
-                    let mut acc = 0.0;
-                    chans.push(
-                        x.iter()
-                            .map(|v| {
-                                acc += v * self.grid.dt;
-                                acc
-                            })
-                            .collect(),
-                    );
-                }
-            }
-            psd.resize_with(chans.len(), || None);
-            for (p, x) in psd.iter_mut().zip(&chans) {
-                let piece = Psd::of(x, self.report.fs_hz);
-                match p {
-                    Some(p) => p.add(&piece),
-                    None => *p = Some(piece),
-                }
-            }
-        }
-        let psd: Vec<Psd> = psd.into_iter().flatten().collect();
-        auto_cutoff(&psd, self.report.fs_hz, n)
+        Ok(Estimator {
+            grid,
+            filter,
+            report,
+            use_dq,
+            given,
+        })
     }
 
-    /// The raw rows covering grid samples `lo..hi` (one more on each side if resampled), and
-    /// the first one's index.
-    fn rows_for(&self, log: &Log, lo: usize, hi: usize) -> Window {
-        if self.report.sampling.uniform {
-            return Window {
-                r0: lo,
-                rows: log.read(lo, hi),
-            };
+    fn reader(&self) -> Reader {
+        Reader {
+            grid: self.grid,
+            uniform: self.report.sampling.uniform,
         }
-        let g = &self.grid;
-        let (t0, t1) = (g.time(lo), g.time(hi.max(lo + 1) - 1));
-        let r0 = log.partition_point(|v| v <= t0).saturating_sub(1);
-        let r1 = (log.partition_point(|v| v < t1) + 1).min(log.len() - 1);
-        let (r0, r1) = (r0.min(r1.saturating_sub(1)), r1.max(1));
-        Window {
-            r0,
-            rows: log.read(r0, r1 + 1),
-        }
-    }
-
-    /// Channel `x` (row-major, of the window's rows) on grid samples `lo..hi`, per joint
-    /// (resampled linearly if the sampling is uneven).
-    fn on_grid(&self, w: &Window, x: &[f64], lo: usize, hi: usize) -> Vec<Vec<f64>> {
-        let dof = w.rows.dof;
-        if self.report.sampling.uniform {
-            return (0..dof)
-                .map(|j| (lo..hi).map(|k| x[(k - w.r0) * dof + j]).collect())
-                .collect();
-        }
-        let sub = Grid {
-            t0: self.grid.time(lo),
-            dt: self.grid.dt,
-            n: hi - lo,
-        };
-        (0..dof)
-            .map(|j| {
-                let xs: Vec<f64> = (0..w.rows.len()).map(|k| x[k * dof + j]).collect();
-                resample_linear(&w.rows.t, &xs, &sub)
-            })
-            .collect()
     }
 
     /// The measured torque of `log` on grid samples `lo..hi`, per joint.
     pub fn tau_on_grid(&self, log: &Log, lo: usize, hi: usize) -> Vec<Vec<f64>> {
-        let w = self.rows_for(log, lo, hi);
+        let w = self.reader().rows_for(log, lo, hi);
         let tau = w.rows.tau.as_deref().unwrap_or(&[]);
-        self.on_grid(&w, tau, lo, hi)
+        self.reader().on_grid(&w, tau, lo, hi)
     }
 
     /// Estimated states of `log` on grid samples `lo..hi`.
@@ -1393,8 +1310,9 @@ impl Estimator {
         }
         let (pad_left, pad_right) = (elo == 0, ehi == n);
         let dt = self.grid.dt;
-        let w = self.rows_for(log, elo, ehi);
-        let g = |x: &[f64]| self.on_grid(&w, x, elo, ehi);
+        let r = self.reader();
+        let w = r.rows_for(log, elo, ehi);
+        let g = |x: &[f64]| r.on_grid(&w, x, elo, ehi);
         let qg = g(&w.rows.q);
         let dqg = w.rows.dq.as_deref().filter(|_| self.use_dq).map(g);
         let ddqg = w.rows.ddq.as_deref().filter(|_| self.given).map(g);
@@ -1452,6 +1370,104 @@ impl Estimator {
             }
         }
         st
+    }
+}
+
+/// How a log's raw rows map onto an estimator's grid.
+#[derive(Debug, Clone, Copy)]
+struct Reader {
+    grid: Grid,
+    uniform: bool,
+}
+
+impl Reader {
+    /// The spectrum's cut-off ([`auto_cutoff`]) over the positions, and over the q̇ channels
+    /// if `integrate_dq` (integrated, so their spectrum is judged like q's by one rule).
+    fn auto_cutoff(&self, log: &Log, integrate_dq: bool) -> (f64, Vec<ChannelSpectrum>) {
+        let n = self.grid.n;
+        let pieces: Vec<(usize, usize)> = if n <= SPECTRUM_WHOLE {
+            vec![(0, n)]
+        } else {
+            let count = (n / PIECE).min(SPECTRUM_PIECES);
+            let gap = (n - count * PIECE) / count;
+            (0..count)
+                .map(|i| {
+                    let a = gap / 2 + i * (PIECE + gap);
+                    (a, a + PIECE)
+                })
+                .collect()
+        };
+        let fs = 1.0 / self.grid.dt;
+        let mut psd: Vec<Option<Psd>> = Vec::new();
+        for &(lo, hi) in &pieces {
+            let w = self.rows_for(log, lo, hi);
+            let mut chans = self.on_grid(&w, &w.rows.q, lo, hi);
+            if let (Some(d), true) = (&w.rows.dq, integrate_dq) {
+                for x in self.on_grid(&w, d, lo, hi) {
+                    let mut acc = 0.0;
+                    chans.push(
+                        x.iter()
+                            .map(|v| {
+                                acc += v * self.grid.dt;
+                                acc
+                            })
+                            .collect(),
+                    );
+                }
+            }
+            psd.resize_with(chans.len(), || None);
+            for (p, x) in psd.iter_mut().zip(&chans) {
+                let piece = Psd::of(x, fs);
+                match p {
+                    Some(p) => p.add(&piece),
+                    None => *p = Some(piece),
+                }
+            }
+        }
+        let psd: Vec<Psd> = psd.into_iter().flatten().collect();
+        auto_cutoff(&psd, fs, n)
+    }
+
+    /// The raw rows covering grid samples `lo..hi` (one more on each side if resampled), and
+    /// the first one's index.
+    fn rows_for(&self, log: &Log, lo: usize, hi: usize) -> Window {
+        if self.uniform {
+            return Window {
+                r0: lo,
+                rows: log.read(lo, hi),
+            };
+        }
+        let g = &self.grid;
+        let (t0, t1) = (g.time(lo), g.time(hi.max(lo + 1) - 1));
+        let r0 = log.partition_point(|v| v <= t0).saturating_sub(1);
+        let r1 = (log.partition_point(|v| v < t1) + 1).min(log.len() - 1);
+        let (r0, r1) = (r0.min(r1.saturating_sub(1)), r1.max(1));
+        Window {
+            r0,
+            rows: log.read(r0, r1 + 1),
+        }
+    }
+
+    /// Channel `x` (row-major, of the window's rows) on grid samples `lo..hi`, per joint
+    /// (resampled linearly if the sampling is uneven).
+    fn on_grid(&self, w: &Window, x: &[f64], lo: usize, hi: usize) -> Vec<Vec<f64>> {
+        let dof = w.rows.dof;
+        if self.uniform {
+            return (0..dof)
+                .map(|j| (lo..hi).map(|k| x[(k - w.r0) * dof + j]).collect())
+                .collect();
+        }
+        let sub = Grid {
+            t0: self.grid.time(lo),
+            dt: self.grid.dt,
+            n: hi - lo,
+        };
+        (0..dof)
+            .map(|j| {
+                let xs: Vec<f64> = (0..w.rows.len()).map(|k| x[k * dof + j]).collect();
+                resample_linear(&w.rows.t, &xs, &sub)
+            })
+            .collect()
     }
 }
 
