@@ -425,7 +425,15 @@ pub fn markdown(o: &Outcome, command: &str, plots: &[String]) -> String {
         } else {
             "Cut-off, regression filter and prediction chosen automatically"
         };
-        let _ = writeln!(m, "\n{what}: smallest held-out error against the measured torque over the scan (rigid body + all candidate effects{scope}):\n");
+        let again = if o.rescanned_with.is_empty() {
+            String::new()
+        } else {
+            format!(
+                "; repeated with {} in the models, found by the first pass",
+                o.rescanned_with.join(", ")
+            )
+        };
+        let _ = writeln!(m, "\n{what}: smallest held-out error against the measured torque over the scan (rigid body + all candidate effects{scope}{again}):\n");
         let _ = writeln!(
             m,
             "| cut-off (Hz) | regression filter | prediction | held-out error |"

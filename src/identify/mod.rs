@@ -33,7 +33,9 @@
 //!
 //! The automatic cut-off ([`choose_cutoff`]) scans candidates and smoothings by that held-out
 //! error; training sets over [`SCAN_SAMPLES`] samples are scanned on evenly spaced pieces
-//! ([`scan_pieces`]).
+//! ([`scan_pieces`]). Load-dependent effects ([`Effect::LOADED`]) are searched in a second
+//! stage on top of the first stage's model (their columns hold its torque); when one is found,
+//! the scan is repeated with it in its models ([`LoadModel`]).
 
 pub mod base;
 pub mod ls;
@@ -1231,10 +1233,90 @@ pub struct Outcome {
     pub scales: Vec<Scales>,
     /// Cut-offs tried by the automatic choice and their held-out errors (empty if fixed).
     pub cutoff_scan: Vec<CutoffTrial>,
+    /// Load-dependent terms the scan was repeated with (found by the first pass).
+    pub rescanned_with: Vec<String>,
+    /// The final model's load-dependent terms and its torque without them (for a rescan).
+    #[serde(skip)]
+    pub load_model: Option<LoadModel>,
     #[serde(skip)]
     pub series: Series,
     #[serde(skip)]
     pub predictions: Option<Predictions>,
+}
+
+/// A model's load-dependent terms and the coefficients of its torque without them, over the
+/// columns of a first-stage layout (what [`choose_cutoff`] needs to judge cut-offs with them).
+#[derive(Debug, Clone, PartialEq)]
+pub struct LoadModel {
+    pub terms: Vec<Term>,
+    pub coefs: Vec<f64>,
+}
+
+fn load_model(layout: &Layout, terms: &[Term], subset: &[usize], x: &[f64]) -> Option<LoadModel> {
+    let loaded: Vec<Term> = terms
+        .iter()
+        .copied()
+        .filter(|t| t.effect.needs_load())
+        .collect();
+    if loaded.is_empty() {
+        return None;
+    }
+    // Load-dependent columns sort last, so the first stage's are the first ones.
+    let first = layout.ncols()
+        - layout
+            .terms
+            .iter()
+            .filter(|t| t.effect.needs_load())
+            .count();
+    let mut coefs = vec![0.0; first];
+    for (&c, &v) in subset.iter().zip(x) {
+        if c < first {
+            coefs[c] = v;
+        }
+    }
+    Some(LoadModel {
+        terms: loaded,
+        coefs,
+    })
+}
+
+/// Chooses the filters on `train`, prepares the files and identifies; if the model found has
+/// load-dependent terms (which the first scan's models lack, see [`Effect::LOADED`]) and the
+/// choice was automatic, the scan is repeated with them in its models, and the identification
+/// with its choice if that differs.
+fn scan_and_run(
+    arm: &ArmSource,
+    base: &BaseModel,
+    train: &[Log],
+    val: Option<&Log>,
+    cfg: &Config,
+    cache: &mut PrepCache,
+) -> Result<Outcome, IdentifyError> {
+    let table = arm.dh_table().ok();
+    let fit = |cache: &mut PrepCache, choice: FilterChoice| -> Result<Outcome, IdentifyError> {
+        let (fc, sm) = (choice.cutoff_hz, choice.smoothing);
+        let preps = cache.get_all(train, cfg, fc, sm)?;
+        let val = match val {
+            Some(v) => {
+                Some(cache.get(v, cfg, fc.or(Some(preps[0].est.report.cutoff_hz)), sm, None)?)
+            }
+            None => None,
+        };
+        run_prepared(arm.name(), base, table.as_ref(), &preps, val.as_ref(), cfg)
+    };
+    let (choice, scan) = choose_cutoff(base, table.as_ref(), train, cfg, cache, None)?;
+    let mut out = fit(cache, choice)?;
+    out.cutoff_scan = scan;
+    let automatic = cfg.derivative.cutoff_hz.is_none() || cfg.smoothing.is_none();
+    if let (Some(lm), true) = (out.load_model.clone(), automatic) {
+        let (again, scan) = choose_cutoff(base, table.as_ref(), train, cfg, cache, Some(&lm))?;
+        if again != choice {
+            out = fit(cache, again)?;
+        }
+        out.cutoff_scan = scan;
+        out.rescanned_with = lm.terms.iter().map(Term::label).collect();
+    }
+    Ok(out)
 }
 
 /// Identifies `arm` from `train` files, validating on `validate` if given (see the module docs).
@@ -1245,35 +1327,20 @@ pub fn run(
     cfg: &Config,
 ) -> Result<Outcome, IdentifyError> {
     let base = BaseModel::for_arm(arm);
-    let table = arm.dh_table().ok();
     for t in &train {
         check_dof(t, &base)?;
     }
     if let Some(v) = &validate {
         check_dof(v, &base)?;
     }
-    let mut cache = PrepCache::default();
-    let (choice, scan) = choose_cutoff(&base, table.as_ref(), &train, cfg, &mut cache)?;
-    // Free the scan's estimates before the final ones are made (peak memory of one copy).
-    drop(cache);
-    let (fc, sm) = (choice.cutoff_hz, choice.smoothing);
-    let preps: Vec<Prepared> = train
-        .iter()
-        .map(|t| Prepared::with_cutoff(t.clone(), cfg, fc, sm, None))
-        .collect::<Result<_, _>>()?;
-    let val = match validate {
-        Some(v) => Some(Prepared::with_cutoff(
-            v,
-            cfg,
-            fc.or(Some(preps[0].est.report.cutoff_hz)),
-            sm,
-            None,
-        )?),
-        None => None,
-    };
-    let mut out = run_prepared(arm.name(), &base, table.as_ref(), &preps, val.as_ref(), cfg)?;
-    out.cutoff_scan = scan;
-    Ok(out)
+    scan_and_run(
+        arm,
+        &base,
+        &train,
+        validate.as_ref(),
+        cfg,
+        &mut PrepCache::default(),
+    )
 }
 
 fn check_dof(t: &Log, base: &BaseModel) -> Result<(), IdentifyError> {
@@ -1391,6 +1458,7 @@ pub fn choose_cutoff(
     train: &[Log],
     cfg: &Config,
     cache: &mut PrepCache,
+    load: Option<&LoadModel>,
 ) -> Result<(FilterChoice, Vec<CutoffTrial>), IdentifyError> {
     let fallback = FilterChoice {
         cutoff_hz: cfg.derivative.cutoff_hz,
@@ -1430,7 +1498,12 @@ pub fn choose_cutoff(
         None => (Smoothing::RATIOS.to_vec(), vec![false, true]),
     };
     let edge_fc = lowest * ratios.iter().copied().fold(1.0, f64::min);
-    let layout = make_layout(base, table, &first, cfg).0;
+    let mut layout = make_layout(base, table, &first, cfg).0;
+    if let Some(lm) = load.filter(|lm| lm.coefs.len() == layout.ncols()) {
+        layout.terms.extend(&lm.terms);
+        layout.load = lm.coefs.clone();
+        layout.load.resize(layout.ncols(), 0.0);
+    }
     let scan_files = scan_pieces(train);
     let all: Vec<Term> = layout.terms.clone();
     let mut trials = Vec::new();
@@ -1758,6 +1831,7 @@ pub fn run_prepared(
         .map(|p| predictions(base, &layout, p, &before, &after))
         .transpose()?;
     let sigma = w.iter().map(|w| 1.0 / w).collect();
+    let load_model = load_model(&layout, &selection.terms, &fitted[1].subset, &after.x);
     Ok(Outcome {
         arm: arm.to_string(),
         dof: n,
@@ -1783,6 +1857,8 @@ pub fn run_prepared(
         blocks: problem.blocks(),
         scales,
         cutoff_scan: Vec::new(),
+        rescanned_with: Vec::new(),
+        load_model,
         series,
         predictions,
     })
@@ -2055,7 +2131,6 @@ pub fn leave_one_out(
     cfg: &Config,
 ) -> Result<Vec<Outcome>, IdentifyError> {
     let base = BaseModel::for_arm(arm);
-    let table = arm.dh_table().ok();
     for t in &files {
         check_dof(t, &base)?;
     }
@@ -2068,19 +2143,14 @@ pub fn leave_one_out(
             .filter(|(i, _)| *i != k)
             .map(|(_, p)| p.clone())
             .collect();
-        let (choice, scan) = choose_cutoff(&base, table.as_ref(), &train, cfg, &mut cache)?;
-        let (fc, sm) = (choice.cutoff_hz, choice.smoothing);
-        let preps = cache.get_all(&train, cfg, fc, sm)?;
-        let val = cache.get(
-            &files[k],
+        out.push(scan_and_run(
+            arm,
+            &base,
+            &train,
+            Some(&files[k]),
             cfg,
-            fc.or(Some(preps[0].est.report.cutoff_hz)),
-            sm,
-            None,
-        )?;
-        let mut o = run_prepared(arm.name(), &base, table.as_ref(), &preps, Some(&val), cfg)?;
-        o.cutoff_scan = scan;
-        out.push(o);
+            &mut cache,
+        )?);
     }
     Ok(out)
 }

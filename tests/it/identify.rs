@@ -347,14 +347,13 @@ fn stribeck_friction_is_found_on_the_right_joint() {
 
 /// Load-dependent friction (synthetic: `μ·sgn(q̇)·|τ_rigid|`, gear friction growing with the
 /// transmitted torque) is found on its joint in the second stage, coefficient within 5 %, and
-/// the validation error at least halves. Not to the 1 % noise: the cut-off scan runs before
-/// the second stage, judged with first-stage models that cannot follow the load-scaled jumps,
-/// and picks filtered predictions (measured 5.8 % → 2.1 % on joint 2's seed; 1.1 % for plain
-/// Coulomb friction of the same size, where the scan's models have the right column).
-/// The first stage stands in for it with a
-/// Coulomb term on the same joint; that term is dropped when redundant, but may stay small
-/// (the second stage's load is the first stage's torque, Coulomb included): measured μ = 0.149
-/// of 0.15 with nothing else on joint 2, 0.097 of 0.1 next to a 0.017 N·m Coulomb on joint 1.
+/// the validation error drops to about the 1 % noise — after the cut-off scan is repeated with
+/// the term in its models (the first scan's models cannot follow the load-scaled jumps and pick
+/// filtered predictions: 2.1 % instead of 1.2 % on joint 2's seed). The first stage stands in
+/// for it with a Coulomb term on the same joint; that term is dropped when redundant, but may
+/// stay small (the second stage's load is the first stage's torque, Coulomb included):
+/// measured μ = 0.149 of 0.15 with nothing else on joint 2, 0.097 of 0.1 next to a 0.017 N·m
+/// Coulomb on joint 1.
 #[test]
 fn load_dependent_friction_is_found_in_the_second_stage() {
     for (joint, mu, seed) in [(1, 0.15, 48), (0, 0.1, 49)] {
@@ -380,7 +379,7 @@ fn load_dependent_friction_is_found_in_the_second_stage() {
             o.after.validation.as_ref().unwrap().overall,
         );
         assert!(
-            after < 0.025 && after < 0.5 * before,
+            after < 0.013 && after < 0.5 * before,
             "{label}: validation {before} -> {after}"
         );
     }
