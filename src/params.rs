@@ -38,7 +38,14 @@ use crate::diag::{did_you_mean, list, Location, TomlProblem};
 use crate::tomlread::{Fail, Src, TableView};
 
 /// Names of the per-joint effects an `[effects]` table may hold.
-pub const KNOWN_EFFECTS: [&str; 5] = ["viscous", "coulomb", "armature", "offset", "spring"];
+pub const KNOWN_EFFECTS: [&str; 6] = [
+    "viscous",
+    "coulomb",
+    "armature",
+    "offset",
+    "spring",
+    "loadcoulomb",
+];
 
 const TOP_KEYS: [&str; 3] = ["link", "effects", "allow_nonphysical"];
 const LINK_KEYS: [&str; 5] = ["m", "com", "inertia_com", "inertia_origin", "name"];
@@ -89,6 +96,10 @@ pub struct Effects {
     /// Linear spring `k` about q = 0 (a spring about another rest angle is a spring plus an
     /// offset): `τ += k·q`.
     pub spring: Option<Vec<f64>>,
+    /// Load-dependent Coulomb friction `μ` (gear friction growing with the transmitted torque):
+    /// `τ = u + μ·sign(q̇)·|u|`, `u` the rigid-body torque plus the other effects
+    /// ([`Effects::load`]; `μ < 1`).
+    pub loadcoulomb: Option<Vec<f64>>,
 }
 
 impl Effects {
@@ -99,23 +110,44 @@ impl Effects {
             && self.armature.is_none()
             && self.offset.is_none()
             && self.spring.is_none()
+            && self.loadcoulomb.is_none()
     }
 
-    /// Torque of all effects at joint `j` for position `q`, velocity `dq` and acceleration `ddq`.
+    /// Joint `j`'s torque with load-dependent friction, from `u` (rigid body + other effects):
+    /// `u + μ·sign(q̇)·|u|`.
+    pub fn load(&self, j: usize, dq: f64, u: f64) -> f64 {
+        let mu = self.loadcoulomb.as_ref().map_or(0.0, |v| v[j]);
+        u + mu * sign(dq) * u.abs()
+    }
+
+    /// The inverse of [`Effects::load`]: the `u` a joint torque `tau` leaves for the rigid body
+    /// and the other effects, `tau / (1 + μ·sign(q̇)·sign(tau))` (u and tau share their sign
+    /// for μ < 1).
+    pub fn unload(&self, j: usize, dq: f64, tau: f64) -> f64 {
+        let mu = self.loadcoulomb.as_ref().map_or(0.0, |v| v[j]);
+        tau / (1.0 + mu * sign(dq) * sign(tau))
+    }
+
+    /// Torque of the additive effects at joint `j` for position `q`, velocity `dq` and
+    /// acceleration `ddq` (all but [`Effects::loadcoulomb`], see [`Effects::load`]).
     pub fn torque(&self, j: usize, q: f64, dq: f64, ddq: f64) -> f64 {
         let get = |v: &Option<Vec<f64>>| v.as_ref().map_or(0.0, |v| v[j]);
-        let sign = if dq > 0.0 {
-            1.0
-        } else if dq < 0.0 {
-            -1.0
-        } else {
-            0.0
-        };
         get(&self.viscous) * dq
-            + get(&self.coulomb) * sign
+            + get(&self.coulomb) * sign(dq)
             + get(&self.armature) * ddq
             + get(&self.offset)
             + get(&self.spring) * q
+    }
+}
+
+/// `sign(x)` with `sign(0) = 0`.
+fn sign(x: f64) -> f64 {
+    if x > 0.0 {
+        1.0
+    } else if x < 0.0 {
+        -1.0
+    } else {
+        0.0
     }
 }
 
@@ -151,6 +183,12 @@ impl Clone for ParamsError {
             },
             ParamsErrorKind::NonPhysical(n) => ParamsErrorKind::NonPhysical(*n),
             ParamsErrorKind::BothInertias => ParamsErrorKind::BothInertias,
+            ParamsErrorKind::LoadFrictionRange { joint, value } => {
+                ParamsErrorKind::LoadFrictionRange {
+                    joint: *joint,
+                    value: *value,
+                }
+            }
             ParamsErrorKind::UnknownEffect { name, suggestion } => ParamsErrorKind::UnknownEffect {
                 name: name.clone(),
                 suggestion: *suggestion,
@@ -181,6 +219,11 @@ pub enum ParamsErrorKind {
     UnknownEffect {
         name: String,
         suggestion: Option<&'static str>,
+    },
+    /// A load-dependent friction coefficient outside `[0, 1)`.
+    LoadFrictionRange {
+        joint: usize,
+        value: f64,
     },
 }
 
@@ -234,6 +277,10 @@ impl fmt::Display for ParamsErrorKind {
             ParamsErrorKind::BothInertias => write!(
                 f,
                 "both `inertia_com` and `inertia_origin` given — keep exactly one of them"
+            ),
+            ParamsErrorKind::LoadFrictionRange { joint, value } => write!(
+                f,
+                "joint {joint}: {value} is not a load-dependent friction coefficient — it is a fraction of the transmitted torque, 0 <= mu < 1"
             ),
             ParamsErrorKind::UnknownEffect { name, suggestion } => {
                 write!(f, "unknown effect `{name}` — ")?;
@@ -404,12 +451,25 @@ fn read_effects(t: &TableView<'_>, dof: usize) -> Result<Effects, ParamsError> {
             });
         }
     }
+    let loadcoulomb = t.f64_array_opt("loadcoulomb", Some(dof))?;
+    if let Some(v) = &loadcoulomb {
+        if let Some(j) = v.iter().position(|m| !(0.0..1.0).contains(m)) {
+            return Err(ParamsError {
+                loc: t.loc_of("loadcoulomb"),
+                kind: Box::new(ParamsErrorKind::LoadFrictionRange {
+                    joint: j + 1,
+                    value: v[j],
+                }),
+            });
+        }
+    }
     Ok(Effects {
         viscous: t.f64_array_opt("viscous", Some(dof))?,
         coulomb: t.f64_array_opt("coulomb", Some(dof))?,
         armature: t.f64_array_opt("armature", Some(dof))?,
         offset: t.f64_array_opt("offset", Some(dof))?,
         spring: t.f64_array_opt("spring", Some(dof))?,
+        loadcoulomb,
     })
 }
 

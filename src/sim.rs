@@ -185,7 +185,7 @@ impl<'a> Plant<'a> {
         }
         if let Some(e) = &self.effects {
             for j in 0..n {
-                ddq[j] -= e.torque(j, q[j], dq[j], 0.0);
+                ddq[j] = e.unload(j, dq[j], tau[j]) - w.h[j] - e.torque(j, q[j], dq[j], 0.0);
                 if let Some(ia) = &e.armature {
                     w.m[j * n + j] += ia[j];
                 }
@@ -204,7 +204,7 @@ impl<'a> Plant<'a> {
         self.model.inverse_dynamics(q, dq, ddq, &self.theta, tau);
         if let Some(e) = &self.effects {
             for j in 0..q.len() {
-                tau[j] += e.torque(j, q[j], dq[j], ddq[j]);
+                tau[j] = e.load(j, dq[j], tau[j] + e.torque(j, q[j], dq[j], ddq[j]));
             }
         }
     }
@@ -364,6 +364,40 @@ pub fn simulate_from(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Forward dynamics inverts inverse dynamics with every effect on, load-dependent friction
+    /// included (inverted in closed form by `Effects::unload`), motoring and braking.
+    #[test]
+    fn forward_dynamics_inverts_inverse_dynamics_with_all_effects() {
+        let model = crate::arms::find("planar2").expect("planar2");
+        let theta = vec![2.0, 2.0, 0.0, 1.0, 1.0, 0.0];
+        let effects = Effects {
+            viscous: Some(vec![0.3, 0.2]),
+            coulomb: Some(vec![0.5, 0.1]),
+            armature: Some(vec![0.1, 0.05]),
+            offset: Some(vec![0.2, -0.1]),
+            spring: Some(vec![1.0, -0.5]),
+            loadcoulomb: Some(vec![0.15, 0.3]),
+        };
+        let plant = Plant::new(model, theta, Some(effects));
+        let mut w = Work {
+            m: vec![0.0; 4],
+            h: vec![0.0; 2],
+        };
+        for (q, dq, ddq) in [
+            ([0.3, -1.2], [0.8, -0.4], [2.0, 1.5]),
+            ([2.0, 0.5], [-0.6, 1.1], [-3.0, 0.2]),
+            ([-1.0, 2.5], [0.0, 0.3], [0.5, -4.0]),
+        ] {
+            let mut tau = [0.0; 2];
+            plant.inverse_dynamics(&q, &dq, &ddq, &mut tau);
+            let mut back = [0.0; 2];
+            assert!(plant.accel(&q, &dq, &tau, &mut back, &mut w));
+            for j in 0..2 {
+                assert!((back[j] - ddq[j]).abs() < 1e-9, "{back:?} vs {ddq:?}");
+            }
+        }
+    }
 
     #[test]
     fn cholesky_solves_spd_and_rejects_indefinite() {

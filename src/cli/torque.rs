@@ -107,7 +107,8 @@ fn torques(arm: &ArmSource, params: &InertialParams, traj: &Trajectory) -> Vec<f
         for k in 0..traj.len() {
             for j in 0..dof {
                 let i = k * dof + j;
-                tau[i] += params.effects.torque(j, traj.q[i], dq[i], ddq[i]);
+                let e = &params.effects;
+                tau[i] = e.load(j, dq[i], tau[i] + e.torque(j, traj.q[i], dq[i], ddq[i]));
             }
         }
     }

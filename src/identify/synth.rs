@@ -241,19 +241,20 @@ pub fn generate(spec: &Spec) -> Trajectory {
             (qs[j], dqs[j], ddqs[j]) = traj.eval(j, tk);
         }
         model.inverse_dynamics(&mut ws, &qs, &dqs, &ddqs, &spec.p, &mut ts);
-        let rigid = ts.clone();
+        // Additive effects first; load-dependent friction scales the torque they leave
+        // (rigid body + other effects), as `dynid simulate` does.
         for (term, v) in &spec.effects {
             let j = term.joint;
             let sign = dqs[j].signum() * f64::from(u8::from(dqs[j] != 0.0));
             let col = match term.effect {
+                Effect::LoadCoulomb => continue,
                 Effect::Coulomb => sign,
-                Effect::LoadCoulomb => sign * rigid[j].abs(),
                 Effect::Stribeck => dqs[j].signum() * (-(dqs[j] / 0.1).powi(2)).exp(),
                 e => e.column(
                     qs[j],
                     dqs[j],
                     ddqs[j],
-                    rigid[j],
+                    0.0,
                     &crate::effects::Scales {
                         coulomb_v: 1.0,
                         stribeck_v: 1.0,
@@ -261,6 +262,11 @@ pub fn generate(spec: &Spec) -> Trajectory {
                 ),
             };
             ts[j] += v * col;
+        }
+        for (term, v) in spec.effects.iter().filter(|(t, _)| t.effect.needs_load()) {
+            let j = term.joint;
+            let sign = dqs[j].signum() * f64::from(u8::from(dqs[j] != 0.0));
+            ts[j] += v * sign * ts[j].abs();
         }
         q.extend_from_slice(&qs);
         dq.extend_from_slice(&dqs);
