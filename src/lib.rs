@@ -2,7 +2,7 @@
 //! kernels, and from measured or simulated data to identified dynamic parameters.
 //!
 //! Layout: [`model`] is the contract every generated arm implements, [`arms`] the registry of
-//! generated arms, [`reference`] the hand-written recursive Newton–Euler oracle; [`dh`],
+//! generated arms, [`reference`](mod@reference) the hand-written recursive Newton–Euler oracle; [`dh`],
 //! [`params`] and [`data`] load user files with errors that say where and how to fix ([`log`]
 //! streams a data file for identification, spilling a long one to disk); [`io`]
 //! writes outputs atomically; [`pack`] runs every kernel on four samples at once (SIMD across
