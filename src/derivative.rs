@@ -5,7 +5,8 @@
 //! per file and then run window by window ([`Estimator::window`], each window with the filter's
 //! reach of margin, so a long log's states never exist all at once; [`estimate`] is the whole
 //! signal as one window):
-//! 1. **Sampling check.** Times must be finite and strictly increasing. If the spacing is uneven
+//! 1. **Sampling check.** Times must be finite and strictly increasing, without gaps (a step over
+//!    [`GAP_STEPS`] median steps is rejected: split the file there). If the spacing is uneven
 //!    (jitter larger than 10⁻⁶ of the median step), every channel is *resampled* by linear
 //!    interpolation onto a uniform grid with the median step, so the filters below are well
 //!    defined; the jitter (min/median/max/std of dt) is reported. Identification brings its
@@ -50,6 +51,9 @@ use crate::log::Log;
 /// Fewest samples any estimator accepts.
 pub const MIN_SAMPLES: usize = 32;
 
+/// A time step longer than this many median steps is a gap in the recording (rejected).
+pub const GAP_STEPS: f64 = 10.0;
+
 /// Errors of derivative estimation (inputs come from user files, so every case has a message).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum DerivativeError {
@@ -57,6 +61,13 @@ pub enum DerivativeError {
     TooFewSamples { n: usize, min: usize },
     #[error("sample times must be strictly increasing: row {row} has t = {t} after t = {prev}")]
     NotIncreasing { row: usize, t: f64, prev: f64 },
+    #[error("gap in the sample times at data row {row}: t jumps from {prev} to {t} s, {:.0}× the median step of {dt_median} s — split the file at the gap (several --data files are fitted together, each filtered on its own) or remove it", (t - prev) / dt_median)]
+    Gap {
+        row: usize,
+        t: f64,
+        prev: f64,
+        dt_median: f64,
+    },
     #[error("non-finite value in channel {channel} at row {row}")]
     NonFinite { channel: usize, row: usize },
     #[error("cut-off {fc} Hz is not inside (0, {max}) Hz for a sampling rate of {fs} Hz")]
@@ -161,6 +172,18 @@ impl Sampling {
             let lo = kth_smallest(m / 2 - 1, (dt_min, dt_max), &mut each);
             0.5 * (lo + kth_smallest(m / 2, (dt_min, dt_max), &mut each))
         };
+        // Resampling would bridge a gap with a straight line, and the filters would smear it.
+        steps(&mut |row, dt, t, prev| {
+            if dt > GAP_STEPS * dt_median {
+                return Err(DerivativeError::Gap {
+                    row: row + 1,
+                    t,
+                    prev,
+                    dt_median,
+                });
+            }
+            Ok(())
+        })?;
         Ok(Sampling {
             n,
             dt_median,

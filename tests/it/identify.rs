@@ -725,6 +725,23 @@ fn bad_input_is_rejected_with_a_clear_message_and_no_output() {
             vec!["duplicate.csv", ":43", "does not increase"],
         ),
         (
+            "gap.csv",
+            csv_rows(400, |k| {
+                let row = good(k);
+                if k < 250 {
+                    return row;
+                }
+                let (t, rest) = row.split_once(',').unwrap();
+                format!("{},{rest}", t.parse::<f64>().unwrap() + 5.0)
+            }),
+            vec![
+                "gap.csv",
+                "gap in the sample times",
+                "data row 251",
+                "split the file",
+            ],
+        ),
+        (
             "short.csv",
             csv_rows(10, good),
             vec!["short.csv", "10 samples"],
