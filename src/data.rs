@@ -402,32 +402,57 @@ impl Trajectory {
         origin: &str,
         dof: Option<usize>,
     ) -> Result<Self, DataError> {
-        let mut t = Vec::new();
-        let mut blocks: [Option<Vec<f64>>; 4] = Default::default();
-        let (layout, _) = read_rows(reader, origin, dof, &mut |l, row| {
-            let n = l.dof;
-            if t.is_empty() {
-                let present = [true, l.dq, l.ddq, l.tau];
-                for (b, p) in blocks.iter_mut().zip(present) {
-                    *b = p.then(Vec::new);
-                }
-            }
-            t.push(row[0]);
-            for (i, b) in blocks.iter_mut().flatten().enumerate() {
-                b.extend_from_slice(&row[1 + i * n..1 + (i + 1) * n]);
-            }
+        let mut traj: Option<Trajectory> = None;
+        read_rows(reader, origin, dof, &mut |l, row| {
+            traj.get_or_insert_with(|| Trajectory::empty(origin, l, 0))
+                .push_row(row);
             Ok(())
         })?;
-        let [q, dq, ddq, tau] = blocks;
-        Ok(Trajectory {
-            source: origin.to_string(),
-            dof: layout.dof,
-            t,
-            q: q.unwrap_or_default(),
-            dq,
-            ddq,
-            tau,
-        })
+        Ok(traj.expect("read_rows rejects a file without rows"))
+    }
+
+    /// No samples yet, with the blocks of `layout` (room for `capacity` samples).
+    pub fn empty(source: &str, layout: &RowLayout, capacity: usize) -> Trajectory {
+        let n = layout.dof;
+        let block = |present: bool| present.then(|| Vec::with_capacity(capacity * n));
+        Trajectory {
+            source: source.to_string(),
+            dof: n,
+            t: Vec::with_capacity(capacity),
+            q: Vec::with_capacity(capacity * n),
+            dq: block(layout.dq),
+            ddq: block(layout.ddq),
+            tau: block(layout.tau),
+        }
+    }
+
+    /// Appends one sample given as a canonical row (`t, q.., [dq..], [ddq..], [tau..]` for the
+    /// blocks this trajectory has).
+    pub fn push_row(&mut self, row: &[f64]) {
+        let n = self.dof;
+        self.t.push(row[0]);
+        self.q.extend_from_slice(&row[1..1 + n]);
+        let mut at = 1 + n;
+        for b in [&mut self.dq, &mut self.ddq, &mut self.tau]
+            .into_iter()
+            .flatten()
+        {
+            b.extend_from_slice(&row[at..at + n]);
+            at += n;
+        }
+    }
+
+    /// Sample `k` as a canonical row (the inverse of [`Trajectory::push_row`]), into `row`.
+    pub fn row_into(&self, k: usize, row: &mut Vec<f64>) {
+        row.clear();
+        row.push(self.t[k]);
+        row.extend_from_slice(self.q_at(k));
+        for b in [self.dq_at(k), self.ddq_at(k), self.tau_at(k)]
+            .into_iter()
+            .flatten()
+        {
+            row.extend_from_slice(b);
+        }
     }
 
     /// The blocks this trajectory has.
@@ -514,21 +539,6 @@ impl Trajectory {
         }
     }
 
-    /// Error unless there are at least `needed` samples.
-    pub fn require_samples(&self, needed: usize, purpose: &str) -> Result<(), DataError> {
-        if self.len() < needed {
-            return Err(DataError {
-                loc: Location::file(&self.source),
-                kind: Box::new(DataErrorKind::TooFewSamples {
-                    found: self.len(),
-                    needed,
-                    purpose: purpose.to_string(),
-                }),
-            });
-        }
-        Ok(())
-    }
-
     /// Writes the trajectory as CSV with the canonical header (only the blocks present).
     pub fn write_csv(&self, w: &mut dyn Write) -> std::io::Result<()> {
         let h = header(
@@ -537,20 +547,10 @@ impl Trajectory {
             self.ddq.is_some(),
             self.tau.is_some(),
         );
-        let blocks = [
-            Some(&self.q),
-            self.dq.as_ref(),
-            self.ddq.as_ref(),
-            self.tau.as_ref(),
-        ];
         let mut row = Vec::with_capacity(h.len());
         write_header(w, &h)?;
         for k in 0..self.len() {
-            row.clear();
-            row.push(self.t[k]);
-            for b in blocks.iter().flatten() {
-                row.extend_from_slice(&b[k * self.dof..(k + 1) * self.dof]);
-            }
+            self.row_into(k, &mut row);
             write_row(w, &row)?;
         }
         Ok(())

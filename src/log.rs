@@ -153,12 +153,10 @@ impl From<Trajectory> for Log {
     fn from(t: Trajectory) -> Log {
         let layout = t.layout();
         let mut rows = Vec::with_capacity(t.len() * layout.width());
+        let mut row = Vec::with_capacity(layout.width());
         for k in 0..t.len() {
-            rows.push(t.t[k]);
-            rows.extend_from_slice(t.q_at(k));
-            for b in [t.dq_at(k), t.ddq_at(k), t.tau_at(k)].into_iter().flatten() {
-                rows.extend_from_slice(b);
-            }
+            t.row_into(k, &mut row);
+            rows.extend_from_slice(&row);
         }
         Log {
             source: t.source,
@@ -254,30 +252,10 @@ impl Log {
 
     /// Rows `r0..r1` as a trajectory (row-major blocks, named like the log).
     pub fn read(&self, r0: usize, r1: usize) -> Trajectory {
-        let l = self.layout;
-        let (n, m) = (l.dof, r1.min(self.len()).saturating_sub(r0));
-        let block = |present: bool| present.then(|| Vec::with_capacity(m * n));
-        let mut t = Vec::with_capacity(m);
-        let mut q = Vec::with_capacity(m * n);
-        let (mut dq, mut ddq, mut tau) = (block(l.dq), block(l.ddq), block(l.tau));
-        self.rows(r0, r1, |row| {
-            t.push(row[0]);
-            q.extend_from_slice(&row[1..1 + n]);
-            let mut at = 1 + n;
-            for b in [&mut dq, &mut ddq, &mut tau].into_iter().flatten() {
-                b.extend_from_slice(&row[at..at + n]);
-                at += n;
-            }
-        });
-        Trajectory {
-            source: self.source.clone(),
-            dof: n,
-            t,
-            q,
-            dq,
-            ddq,
-            tau,
-        }
+        let m = r1.min(self.len()).saturating_sub(r0);
+        let mut t = Trajectory::empty(&self.source, &self.layout, m);
+        self.rows(r0, r1, |row| t.push_row(row));
+        t
     }
 
     /// Time of sample `r`.
