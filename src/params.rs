@@ -141,7 +141,7 @@ impl Effects {
 }
 
 /// `sign(x)` with `sign(0) = 0`.
-fn sign(x: f64) -> f64 {
+pub fn sign(x: f64) -> f64 {
     if x > 0.0 {
         1.0
     } else if x < 0.0 {

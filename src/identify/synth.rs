@@ -22,6 +22,7 @@ use rand_chacha::ChaCha8Rng;
 use crate::data::Trajectory;
 use crate::dh::{DhTable, JointKind};
 use crate::effects::{Effect, Term};
+use crate::params::sign;
 use crate::reference::RefModel;
 
 /// What to simulate.
@@ -245,10 +246,9 @@ pub fn generate(spec: &Spec) -> Trajectory {
         // (rigid body + other effects), as `dynid simulate` does.
         for (term, v) in &spec.effects {
             let j = term.joint;
-            let sign = dqs[j].signum() * f64::from(u8::from(dqs[j] != 0.0));
             let col = match term.effect {
                 Effect::LoadCoulomb => continue,
-                Effect::Coulomb => sign,
+                Effect::Coulomb => sign(dqs[j]),
                 Effect::Stribeck => dqs[j].signum() * (-(dqs[j] / 0.1).powi(2)).exp(),
                 e => e.column(
                     qs[j],
@@ -265,8 +265,7 @@ pub fn generate(spec: &Spec) -> Trajectory {
         }
         for (term, v) in spec.effects.iter().filter(|(t, _)| t.effect.needs_load()) {
             let j = term.joint;
-            let sign = dqs[j].signum() * f64::from(u8::from(dqs[j] != 0.0));
-            ts[j] += v * sign * ts[j].abs();
+            ts[j] += v * sign(dqs[j]) * ts[j].abs();
         }
         q.extend_from_slice(&qs);
         dq.extend_from_slice(&dqs);
