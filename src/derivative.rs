@@ -134,18 +134,13 @@ impl Sampling {
             Ok(())
         };
         let (mut sum, mut dt_min, mut dt_max) = (0.0, f64::INFINITY, 0.0f64);
-        for a in (0..n).step_by(PIECE) {
-            if let Some(i) = times(a, (a + PIECE).min(n))
-                .iter()
-                .position(|v| !v.is_finite())
-            {
-                return Err(DerivativeError::NonFinite {
-                    channel: 0,
-                    row: a + i,
-                });
-            }
+        if !times(0, 1)[0].is_finite() {
+            return Err(DerivativeError::NonFinite { channel: 0, row: 0 });
         }
         steps(&mut |row, dt, t, prev| {
+            if !t.is_finite() {
+                return Err(DerivativeError::NonFinite { channel: 0, row });
+            }
             if dt <= 0.0 {
                 return Err(DerivativeError::NotIncreasing { row, t, prev });
             }
@@ -154,12 +149,6 @@ impl Sampling {
             Ok(())
         })?;
         let m = n - 1;
-        let mean = sum / m as f64;
-        let mut ss = 0.0;
-        steps(&mut |_, dt, _, _| {
-            ss += (dt - mean).powi(2);
-            Ok(())
-        })?;
         let mut each = |f: &mut dyn FnMut(f64)| {
             let _ = steps(&mut |_, dt, _, _| {
                 f(dt);
@@ -172,7 +161,10 @@ impl Sampling {
             let lo = kth_smallest(m / 2 - 1, (dt_min, dt_max), &mut each);
             0.5 * (lo + kth_smallest(m / 2, (dt_min, dt_max), &mut each))
         };
-        // Resampling would bridge a gap with a straight line, and the filters would smear it.
+        // One more pass: the spread of the steps, and gaps (resampling would bridge a gap with a
+        // straight line, and the filters would smear it).
+        let mean = sum / m as f64;
+        let mut ss = 0.0;
         steps(&mut |row, dt, t, prev| {
             if dt > GAP_STEPS * dt_median {
                 return Err(DerivativeError::Gap {
@@ -182,6 +174,7 @@ impl Sampling {
                     dt_median,
                 });
             }
+            ss += (dt - mean).powi(2);
             Ok(())
         })?;
         Ok(Sampling {
