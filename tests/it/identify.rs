@@ -43,6 +43,12 @@ fn coef(o: &Outcome, label: &str) -> f64 {
         .map_or(f64::NAN, |(_, e)| e.value)
 }
 
+/// Overall validation error of the declared and of the augmented model.
+fn validation_before_after(o: &Outcome) -> (f64, f64) {
+    let overall = |r: &identify::ModelResult| r.validation.as_ref().unwrap().overall;
+    (overall(&o.before), overall(&o.after))
+}
+
 /// Each effect coefficient within `rel` of its truth.
 fn assert_coefs(o: &Outcome, truth: &[(&str, f64)], rel: f64) {
     for &(label, t) in truth {
@@ -121,10 +127,7 @@ fn sim_paper_friction_noisy_finds_exactly_viscous_and_coulomb() {
         let v = coef(&o, label);
         assert!((v - t).abs() < 0.05 * t, "{label} = {v} (truth {t})");
     }
-    let (before, after) = (
-        o.before.validation.as_ref().unwrap().overall,
-        o.after.validation.as_ref().unwrap().overall,
-    );
+    let (before, after) = validation_before_after(&o);
     assert!(
         after <= before / 5.0 && after <= 0.02,
         "validation before {before}, after {after}"
@@ -194,10 +197,7 @@ fn dfki_heldout_run_finds_coulomb_on_both_joints() {
         f.contains(&"coulomb1".to_string()) && f.contains(&"coulomb2".to_string()),
         "{f:?}"
     );
-    let (b, a) = (
-        o.before.validation.as_ref().unwrap().overall,
-        o.after.validation.as_ref().unwrap().overall,
-    );
+    let (b, a) = validation_before_after(&o);
     assert!(
         a < 0.8 * b && a < 0.35,
         "held-out run 11: before {b}, after {a}"
@@ -335,10 +335,7 @@ fn stribeck_friction_is_found_on_the_right_joint() {
     let spec = Spec::new(other_planar(), 47).with_effect(Effect::Stribeck, 1, 1.0);
     let (o, _) = run_synth(&spec, &Config::default());
     assert_eq!(found(&o), ["stribeck2"]);
-    let (before, after) = (
-        o.before.validation.as_ref().unwrap().overall,
-        o.after.validation.as_ref().unwrap().overall,
-    );
+    let (before, after) = validation_before_after(&o);
     assert!(
         after < 0.013 && after < 0.7 * before,
         "validation {before} -> {after}"
@@ -374,10 +371,7 @@ fn load_dependent_friction_is_found_in_the_second_stage() {
             coulomb.is_nan() || coulomb.abs() < 0.25 * mu,
             "proxy Coulomb {coulomb}"
         );
-        let (before, after) = (
-            o.before.validation.as_ref().unwrap().overall,
-            o.after.validation.as_ref().unwrap().overall,
-        );
+        let (before, after) = validation_before_after(&o);
         assert!(
             after < 0.013 && after < 0.5 * before,
             "{label}: validation {before} -> {after}"
@@ -443,10 +437,7 @@ fn puma_with_two_undeclared_effects_finds_exactly_them() {
     let (o, _) = run_synth(&spec, &Config::default());
     assert_eq!(found(&o), ["offset5", "viscous2"], "found {:?}", found(&o));
     assert_coefs(&o, &[("viscous2", 0.8), ("offset5", 0.15)], 0.1);
-    let (before, after) = (
-        o.before.validation.as_ref().unwrap().overall,
-        o.after.validation.as_ref().unwrap().overall,
-    );
+    let (before, after) = validation_before_after(&o);
     assert!(after < 0.5 * before, "validation {before} -> {after}");
 }
 
