@@ -7,7 +7,8 @@
 //! Then `$OUT_DIR/arms.rs` gets one `dynid_macros::arm!(<arm>);` per arm plus `ALL`, which
 //! `src/arms.rs` includes. Adding an arm = adding its TOML and running `cargo build`.
 //!
-//! Environment: `DYNID_PYTHON` overrides the interpreter (default `python3`).
+//! Environment: `DYNID_PYTHON` overrides the interpreter (default: `.venv/bin/python` when
+//! `scripts/test.sh` has made it, else `python3`).
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -149,9 +150,9 @@ fn is_fresh(arm: &Arm, version: &str) -> bool {
 }
 
 fn regenerate(manifest: &Path, stale: &[&Arm]) -> Result<(), String> {
-    let python = std::env::var("DYNID_PYTHON").unwrap_or_else(|_| "python3".to_string());
+    let python = python(manifest);
     let names: Vec<&str> = stale.iter().map(|a| a.name.as_str()).collect();
-    let install = "install Python ≥ 3.10 and the generator's packages: `pip install -r codegen/requirements.txt`";
+    let install = "run `scripts/test.sh` once (it sets up `.venv/` with the pinned generator), or install Python ≥ 3.10 and `pip install -r codegen/requirements.txt`";
     // Not a cargo:warning: cargo replays cached warnings on later no-op builds, which would
     // claim a regeneration that is not happening. Visible with `cargo build -vv`.
     eprintln!(
@@ -188,6 +189,19 @@ fn regenerate(manifest: &Path, stale: &[&Arm]) -> Result<(), String> {
         stdout.trim_end(),
         stderr.trim_end()
     ))
+}
+
+/// The interpreter that runs the generator: `DYNID_PYTHON`, else the project's `.venv/` (made by
+/// `scripts/test.sh`) when it exists, else `python3` on the `PATH`.
+fn python(manifest: &Path) -> String {
+    if let Ok(p) = std::env::var("DYNID_PYTHON") {
+        return p;
+    }
+    let venv = manifest.join(".venv/bin/python");
+    if venv.exists() {
+        return venv.display().to_string();
+    }
+    "python3".to_string()
 }
 
 fn missing_module(stderr: &str) -> Option<&str> {

@@ -185,3 +185,16 @@ pub fn planar2_phi(q: &[f64], dq: &[f64], ddq: &[f64]) -> [f64; 12] {
 pub fn planar2_theta(p: &[f64]) -> [f64; 6] {
     [p[5] + p[19], p[6] + p[19], p[7], p[15], p[16], p[17]]
 }
+
+/// The Python the tests call: `DYNID_PYTHON` (set by scripts/test.sh), else the project's
+/// `.venv/` when it exists, else `python3` on the `PATH` — the same rule as build.rs.
+pub fn project_python() -> std::path::PathBuf {
+    if let Some(p) = std::env::var_os("DYNID_PYTHON") {
+        return p.into();
+    }
+    let venv = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(".venv/bin/python");
+    if venv.exists() {
+        return venv;
+    }
+    "python3".into()
+}

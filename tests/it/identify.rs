@@ -15,10 +15,9 @@ use dynid::identify::synth::{generate, Fourier, Spec};
 use dynid::identify::{self, base::BaseModel, Config, Outcome};
 use dynid::log::Log;
 
-fn shared(rel: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/data")
-        .join(rel)
+/// A dataset in the repository's `data/` folder.
+fn data(rel: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("data").join(rel)
 }
 
 fn arm_table(name: &str) -> DhTable {
@@ -95,7 +94,7 @@ fn run_synth(spec: &Spec, cfg: &Config) -> (Outcome, Vec<f64>) {
     (o, truth)
 }
 
-// --- the shared datasets -------------------------------------------------------------------
+// --- the datasets in data/ -------------------------------------------------------------------
 
 /// README of sim/planar2_paper_friction: θ = [2,2,0,1,1,0], viscous [0.8,0.5], Coulomb [1.2,0.6],
 /// no armature/offset/spring. Tolerances are the (0.02 on θ, 5 % on friction, validation
@@ -103,7 +102,7 @@ fn run_synth(spec: &Spec, cfg: &Config) -> (Outcome, Vec<f64>) {
 /// well inside them.
 #[test]
 fn sim_paper_friction_noisy_finds_exactly_viscous_and_coulomb() {
-    let d = shared("sim/planar2_paper_friction");
+    let d = data("sim/planar2_paper_friction");
     let arm = resolve(d.join("arm.toml").to_str().unwrap()).unwrap();
     let tr = Log::open(&d.join("excite_noisy.csv.gz"), Some(2)).unwrap();
     let va = Log::open(&d.join("validate_noisy.csv.gz"), Some(2)).unwrap();
@@ -151,7 +150,7 @@ fn sim_paper_friction_noisy_finds_exactly_viscous_and_coulomb() {
 /// shared set's rows, through the gzip stream, validation file spilled too.
 #[test]
 fn spilled_logs_identify_exactly_like_held_ones() {
-    let d = shared("sim/planar2_paper_friction");
+    let d = data("sim/planar2_paper_friction");
     let arm = resolve(d.join("arm.toml").to_str().unwrap()).unwrap();
     let open = |f: &str, spill: usize| Log::open_spilling(&d.join(f), Some(2), spill).unwrap();
     let run = |spill: usize| {
@@ -183,14 +182,14 @@ fn spilled_logs_identify_exactly_like_held_ones() {
 /// found on both joints and the held-out error must drop; the full rotation is `dfki_leave_one_out`.
 #[test]
 fn dfki_heldout_run_finds_coulomb_on_both_joints() {
-    let d = shared("real/dfki_double_pendulum");
+    let d = data("real/dfki_double_pendulum");
     let arm = resolve(d.join("arm.toml").to_str().unwrap()).unwrap();
     let runs = ["00", "01", "02", "04", "05", "12", "13"];
     let train: Vec<Log> = runs
         .iter()
-        .map(|r| Log::open(&d.join(format!("run_{r}.csv")), Some(2)).unwrap())
+        .map(|r| Log::open(&d.join(format!("run_{r}.csv.gz")), Some(2)).unwrap())
         .collect();
-    let va = Log::open(&d.join("run_11.csv"), Some(2)).unwrap();
+    let va = Log::open(&d.join("run_11.csv.gz"), Some(2)).unwrap();
     let o = identify::run(&arm, train, Some(va), &Config::default()).unwrap();
     let f = found(&o);
     assert!(
@@ -223,12 +222,12 @@ fn dfki_heldout_run_finds_coulomb_on_both_joints() {
 #[test]
 #[ignore]
 fn dfki_leave_one_out() {
-    let d = shared("real/dfki_double_pendulum");
+    let d = data("real/dfki_double_pendulum");
     let arm = resolve(d.join("arm.toml").to_str().unwrap()).unwrap();
     let runs = ["00", "01", "02", "04", "05", "11", "12", "13"];
     let files: Vec<Log> = runs
         .iter()
-        .map(|r| Log::open(&d.join(format!("run_{r}.csv")), Some(2)).unwrap())
+        .map(|r| Log::open(&d.join(format!("run_{r}.csv.gz")), Some(2)).unwrap())
         .collect();
     let outs = identify::leave_one_out(&arm, files, &Config::default()).unwrap();
     for (r, o) in runs.iter().zip(&outs) {

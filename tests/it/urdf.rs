@@ -1,8 +1,8 @@
 //! URDF import/export. The oracles: (1) a URDF-native recursive Newton–Euler written here from
 //! the URDF semantics (world-frame, joints as URDF defines them, bodies never lumped) on random
 //! trees with every geometry and joint kind; (2) the round trip arm → URDF → arm; (3) Pinocchio
-//! on real robots (`tests/pinocchio/check_urdf.py`, when pinocchio and example-robot-data are
-//! installed).
+//! on real robots (`tests/pinocchio/check_urdf.py`, with the Pinocchio and example-robot-data
+//! that scripts/test.sh installs into `.venv/`; without them the test fails and says so).
 
 use std::f64::consts::{FRAC_PI_2, PI};
 use std::fmt::Write as _;
@@ -968,36 +968,34 @@ fn cli_imports_exports_and_computes_torques() {
 // ---------------------------------------------------------------------------------------------
 // Pinocchio on real robots.
 
-/// `None` (with the reason) unless python3 can import pinocchio and example-robot-data is there.
-fn pinocchio_unavailable(script: &Path) -> Option<String> {
-    match Command::new("python3").arg(script).arg("--check").output() {
+/// `None` (with the reason) unless the project's Python can import pinocchio and
+/// example-robot-data is there.
+fn pinocchio_unavailable(python: &Path, script: &Path) -> Option<String> {
+    match Command::new(python).arg(script).arg("--check").output() {
         Ok(o) if o.status.success() => None,
         Ok(o) => Some(format!(
             "{}{}",
             String::from_utf8_lossy(&o.stdout),
             String::from_utf8_lossy(&o.stderr)
         )),
-        Err(e) => Some(format!("python3: {e}")),
+        Err(e) => Some(format!("{}: {e}", python.display())),
     }
 }
 
 fn run_pinocchio_check(extra: &[&str]) {
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/pinocchio/check_urdf.py");
-    if let Some(why) = pinocchio_unavailable(&script) {
-        // CI installs tests/pinocchio/requirements.txt: there a missing Pinocchio is a failure,
-        // not a silent pass.
-        assert!(
-            std::env::var("CI").as_deref() != Ok("true"),
-            "CI=true but the Pinocchio comparison cannot run: {}",
+    let python = project_python();
+    // Never a silent pass: the test command (scripts/test.sh) installs Pinocchio into .venv/.
+    if let Some(why) = pinocchio_unavailable(&python, &script) {
+        panic!(
+            "the Pinocchio comparison cannot run with {}: {} — run scripts/test.sh (it sets up .venv/ \
+             with the pinned Pinocchio), or set DYNID_PYTHON to an interpreter that has \
+             `pip install -r requirements.txt`",
+            python.display(),
             why.trim()
         );
-        eprintln!(
-            "SKIPPED: Pinocchio comparison of import-urdf — {}",
-            why.trim()
-        );
-        return;
     }
-    let o = Command::new("python3")
+    let o = Command::new(&python)
         .arg(&script)
         .args(["--dynid", env!("CARGO_BIN_EXE_dynid")])
         .args(extra)

@@ -13,7 +13,7 @@ Also: `dynid export-urdf` of the imported arm, read back by Pinocchio, gives the
     python3 tests/pinocchio/check_urdf.py --check                               # prerequisites only
 
 Exit status: 0 all agree, 1 a disagreement or a failed command, 77 pinocchio or example-robot-data missing.
-Install: pip install -r tests/pinocchio/requirements.txt
+Install: scripts/test.sh sets up .venv/ with everything (or: pip install -r requirements.txt)
 """
 
 from __future__ import annotations
@@ -252,11 +252,11 @@ def main(argv: list[str] | None = None) -> int:
     try:
         import pinocchio  # noqa: F401
     except ImportError:
-        print("skip: pinocchio is not installed (pip install -r tests/pinocchio/requirements.txt)", file=sys.stderr)
+        print("skip: pinocchio is not installed (scripts/test.sh sets up .venv/ with it; or pip install -r requirements.txt)", file=sys.stderr)
         return SKIP
     robots = robots_dir(args.robots)
     if robots is None or not robots.is_dir():
-        print("skip: example-robot-data is not installed (pip install -r tests/pinocchio/requirements.txt)")
+        print("skip: example-robot-data is not installed (scripts/test.sh sets up .venv/ with it; or pip install -r requirements.txt)")
         return SKIP
     if args.check:
         return 0
