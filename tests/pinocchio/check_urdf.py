@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 
 SKIP = 77
+INSTALL = "run scripts/test.sh (it sets up .venv/ with it), or pip install -r requirements.txt"
 REPO = Path(__file__).resolve().parents[2]
 
 
@@ -252,11 +253,11 @@ def main(argv: list[str] | None = None) -> int:
     try:
         import pinocchio  # noqa: F401
     except ImportError:
-        print("skip: pinocchio is not installed (scripts/test.sh sets up .venv/ with it; or pip install -r requirements.txt)", file=sys.stderr)
+        print(f"skip: pinocchio is not installed — {INSTALL}", file=sys.stderr)
         return SKIP
     robots = robots_dir(args.robots)
     if robots is None or not robots.is_dir():
-        print("skip: example-robot-data is not installed (scripts/test.sh sets up .venv/ with it; or pip install -r requirements.txt)")
+        print(f"skip: example-robot-data is not installed — {INSTALL}")
         return SKIP
     if args.check:
         return 0
