@@ -27,6 +27,7 @@ pub mod paper;
 pub mod params;
 pub mod reference;
 pub mod report;
+pub mod signal;
 pub mod sim;
 pub mod trajectory;
 pub mod trig;

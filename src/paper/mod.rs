@@ -27,11 +27,11 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use serde::Serialize;
 
 use crate::control::{Ctc, ModelBased, Pd, Rhftc, RhftcGains, Usage};
-use crate::derivative::{central_uniform, Butterworth};
 use crate::excitation::{
     minimize, FourierProblem, GaConfig, Limits, LogisticDesign, LogisticProblem, Margins, StepPlan,
 };
 use crate::model::Model;
+use crate::signal::{central_uniform, Butterworth};
 use crate::sim::{simulate, Plant, SimConfig, SimError, SimLog};
 use crate::trajectory::fourier::Fourier;
 use crate::trajectory::logistic::Logistic;

@@ -16,9 +16,9 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::ident::{max_abs_diff, step_ls, Signals};
-use crate::derivative::{central_uniform, Butterworth};
 use crate::excitation::StepPlan;
 use crate::model::Model;
+use crate::signal::{central_uniform, Butterworth};
 use crate::trajectory::fourier::fit_periodic;
 use crate::trajectory::logistic::LogisticJoint;
 

@@ -1,0 +1,82 @@
+//! Signal-processing building blocks of derivative estimation, one algorithm per file.
+
+pub mod butterworth;
+pub mod central_difference;
+pub mod cutoff;
+pub mod fft;
+pub mod order_statistics;
+pub mod resample;
+pub mod sampling;
+pub mod savgol;
+pub mod welch;
+
+pub use butterworth::Butterworth;
+pub use central_difference::{central_uneven, central_uniform};
+pub use cutoff::{auto_cutoff, ChannelSpectrum, Psd};
+pub use resample::{resample_linear, Grid};
+pub use sampling::{Sampling, GAP_STEPS, MIN_SAMPLES};
+pub use savgol::{SavGol, SG_DEGREE};
+pub use welch::welch_psd;
+
+/// Errors of derivative estimation (inputs come from user files, so every case has a message).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum DerivativeError {
+    #[error("too few samples: {n} (at least {min} are needed to estimate derivatives)")]
+    TooFewSamples { n: usize, min: usize },
+    #[error("sample times must be strictly increasing: row {row} has t = {t} after t = {prev}")]
+    NotIncreasing { row: usize, t: f64, prev: f64 },
+    #[error("gap in the sample times at data row {row}: t jumps from {prev} to {t} s, {:.0}× the median step of {dt_median} s — split the file at the gap (several --data files are fitted together, each filtered on its own) or remove it", (t - prev) / dt_median)]
+    Gap {
+        row: usize,
+        t: f64,
+        prev: f64,
+        dt_median: f64,
+    },
+    #[error("non-finite value in channel {channel} at row {row}")]
+    NonFinite { channel: usize, row: usize },
+    #[error("cut-off {fc} Hz is not inside (0, {max}) Hz for a sampling rate of {fs} Hz")]
+    BadCutoff { fc: f64, max: f64, fs: f64 },
+    #[error("filter order must be between 1 and 12, got {0}")]
+    BadOrder(usize),
+}
+
+/// Pieces in which long signals are read (times, spectra): 65536 samples.
+pub(crate) const PIECE: usize = 1 << 16;
+
+/// A linear zero-phase low-pass filter applied to a window of a longer uniformly sampled signal.
+///
+/// `pad_left`/`pad_right` say whether the window starts/ends at the true end of the signal (then
+/// the filter's end treatment is applied); otherwise the caller keeps [`ZeroPhase::reach`] samples
+/// of margin on that side and discards them, which makes chunked filtering equal to whole-signal
+/// filtering to ~1e-8 relative.
+pub trait ZeroPhase: Sync {
+    fn apply(&self, x: &mut [f64], pad_left: bool, pad_right: bool);
+    /// [`ZeroPhase::apply`] on several channels of equal length (a filter may run them side by
+    /// side; the result is the same).
+    fn apply_many(&self, xs: &mut [&mut [f64]], pad_left: bool, pad_right: bool) {
+        for x in xs.iter_mut() {
+            self.apply(x, pad_left, pad_right);
+        }
+    }
+    /// Samples beyond which the filter's influence is negligible (≈1e-8 relative).
+    fn reach(&self) -> usize;
+    /// Amplitude gain at frequency `f` (Hz).
+    fn gain(&self, f: f64) -> f64;
+    /// Short description for reports.
+    fn describe(&self) -> String;
+}
+
+/// Sum of sines with known derivatives, content up to 1.5 Hz: `(q, q̇, q̈)` at `t` (tests).
+#[cfg(test)]
+pub(crate) fn sines(t: f64) -> (f64, f64, f64) {
+    use std::f64::consts::PI;
+    let comps = [(0.3, 0.8, 0.2), (0.9, 0.4, 1.0), (1.5, 0.15, -0.5)];
+    let (mut q, mut dq, mut ddq) = (0.0, 0.0, 0.0);
+    for (f, a, ph) in comps {
+        let w = 2.0 * PI * f;
+        q += a * (w * t + ph).sin();
+        dq += a * w * (w * t + ph).cos();
+        ddq -= a * w * w * (w * t + ph).sin();
+    }
+    (q, dq, ddq)
+}
