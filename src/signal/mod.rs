@@ -1,4 +1,26 @@
-//! Signal-processing building blocks of derivative estimation, one algorithm per file.
+//! Signal-processing building blocks of derivative estimation, one algorithm per file; the
+//! streaming estimator that puts them together is [`crate::derivative`].
+//!
+//! - `sampling.rs`: [`Sampling`], checks of a file's times (finite, increasing, no gap over
+//!   [`GAP_STEPS`] median steps) and the spread of the steps, the median exact and read in pieces.
+//! - `order_statistics.rs`: the exact k-th smallest of values visited in passes (histogram
+//!   refinement) and the median of a slice.
+//! - `resample.rs`: the uniform [`Grid`] and linear resampling onto it ([`resample_linear`]).
+//! - `butterworth.rs`: [`Butterworth`] low-pass as second-order sections, run forward and
+//!   backward, several channels side by side.
+//! - `savgol.rs`: [`SavGol`], Savitzky–Golay fits (value, q̇, q̈), window matched to a cut-off,
+//!   FFT convolution for long windows, fits at the ends.
+//! - `fft.rs`: in-place radix-2 FFT (Savitzky–Golay convolution, Welch).
+//! - `central_difference.rs`: [`central_uniform`] (5-point) and [`central_uneven`] (parabolas).
+//! - `welch.rs`: [`welch_psd`], Welch power spectral density.
+//! - `cutoff.rs`: the automatic cut-off rule ([`auto_cutoff`], [`Psd`], [`ChannelSpectrum`]).
+//!
+//! [`ZeroPhase`] (here) is the one interface the estimator and the identification's parallel
+//! filtering call. **To add a derivative estimator or smoother:** add a file implementing
+//! [`ZeroPhase`], add a variant to [`crate::derivative::Method`] and one to
+//! [`crate::derivative::Filter`] with its arms in `Filter::lowpass`, `Filter::as_zero_phase` and
+//! the derivative step of `Estimator::window` (filtering plus [`central_uniform`], as for
+//! Butterworth, or the method's own derivatives, as for Savitzky–Golay).
 
 pub mod butterworth;
 pub mod central_difference;
