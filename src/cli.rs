@@ -10,6 +10,7 @@ use clap::{Parser, Subcommand};
 
 mod arms;
 mod bench;
+mod bench_models;
 mod excite;
 mod export_urdf;
 mod identify;
@@ -32,6 +33,8 @@ pub enum Command {
     Arms(arms::Args),
     /// Quick throughput of the generated kernels vs the reference, and a 1e6-sample identification.
     Bench(bench::Args),
+    /// The models, parameters and input pool of `dynid bench`, for peer harnesses (benches/peers/).
+    BenchModels(bench_models::Args),
     /// Inverse dynamics along a trajectory (CSV of t, tau1..taun).
     Torque(torque::Args),
     /// Identify base parameters from data, find missing effects (friction, armature, ...), report.
@@ -57,6 +60,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Some(Command::Simulate(args)) => simulate::run(&args),
         Some(Command::Arms(args)) => arms::run(&args),
         Some(Command::Bench(args)) => bench::run(&args),
+        Some(Command::BenchModels(args)) => bench_models::run(&args),
         Some(Command::Torque(args)) => torque::run(&args),
         Some(Command::Identify(args)) => identify::run(&args),
         Some(Command::ImportUrdf(args)) => import_urdf::run(&args),
