@@ -1,11 +1,13 @@
 //! The README benchmark table and plot: `dynid bench` numbers next to Pinocchio's, measured in
 //! the same run (`scripts/bench_table.sh`).
 //!
-//! Pinocchio's harness (`../shared/anchors/pinocchio/run.sh`) prints machine-readable lines
-//! `pinocchio,<model>,<algo>,<median_ns>`; [`PinocchioTimes::parse`] reads them from its whole
-//! output. Kernel ↔ algorithm: `regressor` and `base_regressor` ↔ `regressor` (Pinocchio has no
-//! base regressor; the targets compare against its full one), `mass_matrix` ↔ `crba`, `bias` ↔
-//! `nle`, `inverse_dynamics` ↔ `rnea`; `gravity` has no counterpart in the harness.
+//! Pinocchio's harness (`benches/peers/pinocchio/run.sh`: Pinocchio on the models, parameters and
+//! input pool of `dynid bench`, checked against dynid's torques before timing) prints
+//! machine-readable lines `pinocchio,<model>,<algo>,<median_ns>`; [`PinocchioTimes::parse`] reads
+//! them from its whole output. Kernel ↔ algorithm: `regressor` and `base_regressor` ↔ `regressor`
+//! (Pinocchio has no base regressor; the targets compare against its full one), `mass_matrix` ↔
+//! `crba`, `bias` ↔ `nle`, `gravity` ↔ `gravity` (`computeGeneralizedGravity`),
+//! `inverse_dynamics` ↔ `rnea`.
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -54,6 +56,7 @@ pub fn pinocchio_algo(kernel: &str) -> Option<&'static str> {
         "regressor" | "base_regressor" => Some("regressor"),
         "mass_matrix" => Some("crba"),
         "bias" => Some("nle"),
+        "gravity" => Some("gravity"),
         "inverse_dynamics" => Some("rnea"),
         _ => None,
     }
@@ -280,10 +283,11 @@ pub fn markdown(report: &Report, pin: &PinocchioTimes, info: &RunInfo) -> String
         "ns per call, single thread, median; the same 1024-sample random input pool for every column \
          (q ~ U(−π, π), q̇ ~ U(−2, 2), q̈ ~ U(−5, 5)). *generated*: the kernels in `generated/` through \
          the `Model` trait; *reference*: the hand-written recursive Newton–Euler in `src/reference/`; \
-         *Pinocchio*: Pinocchio 4.1 C++ (`-O3 -march=native`, header-only) measured in the same run by \
-         `../shared/anchors/pinocchio/run.sh` (base regressor vs its full regressor, M vs CRBA, bias vs \
-         `nonLinearEffects`, inverse dynamics vs RNEA). Operation counts are the generator's (binary \
-         `*` `/` and `+` `−`). *lanes*: the same generated kernel batched over 4 samples per call \
+         *Pinocchio*: Pinocchio 4.1 C++ (`-O3 -march=native`, header-only) on the same models, \
+         parameters and inputs, checked against our torques, measured in the same run by \
+         `benches/peers/pinocchio/run.sh` (base regressor vs its full regressor, M vs CRBA, bias vs \
+         `nonLinearEffects`, gravity vs `computeGeneralizedGravity`, inverse dynamics vs RNEA). \
+         Operation counts are the generator's (binary `*` `/` and `+` `−`). *lanes*: the same generated kernel batched over 4 samples per call \
          (`dynid::pack`, one AVX instruction per operation), ns per *sample*.\n"
     );
     let _ = writeln!(s, "| arm | kernel | mul / add | generated | lanes (per sample) | reference | Pinocchio | reference / generated | Pinocchio / generated | Pinocchio / lanes |");
@@ -487,7 +491,9 @@ mod tests {
         let pin = PinocchioTimes::parse(HARNESS);
         assert_eq!(pin.get("puma560", "base_regressor"), Some(1160.0));
         assert_eq!(pin.get("puma560", "inverse_dynamics"), Some(600.5));
-        assert_eq!(pin.get("puma560", "gravity"), None);
+        assert_eq!(pin.get("puma560", "gravity"), None, "no gravity line");
+        let g = PinocchioTimes::parse("pinocchio,puma560,gravity,90.5\n");
+        assert_eq!(g.get("puma560", "gravity"), Some(90.5));
         assert_eq!(pin.get("panda", "regressor"), None);
         assert!(PinocchioTimes::parse("nothing here").is_empty());
     }

@@ -25,7 +25,7 @@ pub struct Args {
     /// Samples in the streaming PUMA 560 identification.
     #[arg(long, default_value_t = IDENTIFY_SAMPLES)]
     pub samples: usize,
-    /// Output of `../shared/anchors/pinocchio/run.sh` from the same run (its
+    /// Output of `benches/peers/pinocchio/run.sh` from the same run (its
     /// `pinocchio,<model>,<algo>,<ns>` lines), for the Pinocchio columns of --markdown/--svg.
     #[arg(long, value_name = "FILE")]
     pub pinocchio: Option<PathBuf>,
@@ -67,7 +67,7 @@ pub fn run(args: &Args) -> Result<()> {
             let times = PinocchioTimes::parse(&text);
             if times.is_empty() {
                 return Err(InputError(format!(
-                    "--pinocchio {}: no `pinocchio,<model>,<algo>,<ns>` lines — pass the full output of ../shared/anchors/pinocchio/run.sh",
+                    "--pinocchio {}: no `pinocchio,<model>,<algo>,<ns>` lines — pass the full output of benches/peers/pinocchio/run.sh",
                     path.display()
                 ))
                 .into());
