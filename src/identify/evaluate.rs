@@ -1,0 +1,158 @@
+//! Stage 5, **errors against the measured torque**: models' residuals at every used raw sample
+//! of the files, with their full-data and their leave-one-block-out parameters ([`raw_sums`]),
+//! as relative RMS errors ([`Errors`]).
+
+use rayon::prelude::*;
+use serde::Serialize;
+
+use super::base::BaseModel;
+use super::layout::Layout;
+use super::predict::{spread, Predicted};
+use super::prepare::{raw_cores, raw_in_core, Prepared};
+use super::rows::Rows;
+
+/// A model judged against the measured torque: its columns, its parameters fitted on all
+/// training blocks (for the error) and those fitted without each block (for the held-out
+/// error); either may be left out.
+pub struct Judged<'a> {
+    pub subset: &'a [usize],
+    pub x: Option<&'a [f64]>,
+    pub loo: Option<&'a [Vec<f64>]>,
+}
+
+/// Per model and joint, `Σ (τ − τ̂)²` over the raw samples (with the full-data parameters) and
+/// the same with each block predicted by the fit without it; per joint `Σ τ²`.
+#[derive(Debug, Clone)]
+pub struct RawSums {
+    pub sse: Vec<Vec<f64>>,
+    pub heldout: Vec<Vec<f64>>,
+    pub tss: Vec<f64>,
+}
+
+impl RawSums {
+    fn zero(models: usize, n: usize) -> Self {
+        RawSums {
+            sse: vec![vec![0.0; n]; models],
+            heldout: vec![vec![0.0; n]; models],
+            tss: vec![0.0; n],
+        }
+    }
+
+    fn add(&mut self, o: &RawSums) {
+        for (a, b) in self.sse.iter_mut().zip(&o.sse) {
+            a.iter_mut().zip(b).for_each(|(x, y)| *x += y);
+        }
+        for (a, b) in self.heldout.iter_mut().zip(&o.heldout) {
+            a.iter_mut().zip(b).for_each(|(x, y)| *x += y);
+        }
+        self.tss.iter_mut().zip(&o.tss).for_each(|(x, y)| *x += y);
+    }
+
+    /// Errors of model `m` with its full-data parameters.
+    pub fn errors(&self, m: usize) -> Errors {
+        let per_joint = (0..self.tss.len())
+            .map(|j| {
+                if self.tss[j] > 0.0 {
+                    (self.sse[m][j] / self.tss[j]).sqrt()
+                } else {
+                    f64::NAN
+                }
+            })
+            .collect();
+        let overall = (self.sse[m].iter().sum::<f64>() / self.tss.iter().sum::<f64>()).sqrt();
+        Errors { per_joint, overall }
+    }
+
+    /// Held-out relative RMS error of model `m`, pooled over joints.
+    pub fn heldout(&self, m: usize) -> f64 {
+        (self.heldout[m].iter().sum::<f64>() / self.tss.iter().sum::<f64>()).sqrt()
+    }
+}
+
+/// Residuals of `models` against the torque as measured, over the raw samples of `files`;
+/// `blocks` (blocks per file) names the block whose leave-out parameters predict a sample.
+/// One pass, in parallel over chunks; the chunk sums are added in a fixed order
+/// (deterministic).
+pub fn raw_sums(
+    base: &BaseModel,
+    layout: &Layout,
+    files: &[Prepared],
+    blocks: Option<&[usize]>,
+    models: &[Judged],
+) -> RawSums {
+    let n = layout.dof;
+    let active: Vec<Vec<usize>> = (0..n).map(|j| layout.active(j)).collect();
+    let mut total = RawSums::zero(models.len(), n);
+    let mut offset = 0;
+    for (fi, p) in files.iter().enumerate() {
+        let nblocks = blocks.map_or(1, |b| b[fi]);
+        // Coefficient sets `[set][joint][active column]`: model m's full-data parameters (if
+        // any) at `first_set[m]`, then its leave-one-block-out ones, block by block.
+        let (mut sets, mut first_set) = (Vec::new(), Vec::new());
+        for m in models {
+            first_set.push(sets.len());
+            let per_joint = |x: &[f64]| -> Vec<Vec<f64>> {
+                (0..n).map(|j| spread(&active[j], m.subset, x)).collect()
+            };
+            sets.extend(m.x.map(per_joint));
+            if let Some(loo) = m.loo {
+                sets.extend((0..nblocks).map(|b| per_joint(&loo[offset + b])));
+            }
+        }
+        let parts: Vec<RawSums> = raw_cores(p)
+            .par_iter()
+            .map(|&core| {
+                let mut sums = RawSums::zero(models.len(), n);
+                let mut rows = Rows::new(base, layout);
+                // Only the blocks this chunk's samples can fall in (filter margins included).
+                let (b0, b1) = (
+                    p.block_of(core.0.saturating_sub(1), nblocks),
+                    p.block_of(core.1, nblocks),
+                );
+                let mut wanted = vec![false; sets.len()];
+                for (m, model) in models.iter().enumerate() {
+                    let full = usize::from(model.x.is_some());
+                    wanted[first_set[m]] |= full == 1;
+                    if model.loo.is_some() {
+                        for blk in b0..=b1 {
+                            wanted[first_set[m] + full + blk] = true;
+                        }
+                    }
+                }
+                let pc = Predicted::new(p, &mut rows, &active, core, &sets, &wanted);
+                raw_in_core(p, core, 1, |_, _, tau, (k, s)| {
+                    let blk = p.block_of(k + usize::from(s >= 0.5), nblocks);
+                    for (ss, t) in sums.tss.iter_mut().zip(tau) {
+                        *ss += t * t;
+                    }
+                    for (m, model) in models.iter().enumerate() {
+                        let full = usize::from(model.x.is_some());
+                        for (j, &t) in tau.iter().enumerate() {
+                            if full == 1 {
+                                let e = t - pc.at(first_set[m], j, (k, s));
+                                sums.sse[m][j] += e * e;
+                            }
+                            if model.loo.is_some() {
+                                let e = t - pc.at(first_set[m] + full + blk, j, (k, s));
+                                sums.heldout[m][j] += e * e;
+                            }
+                        }
+                    }
+                });
+                sums
+            })
+            .collect();
+        for part in &parts {
+            total.add(part);
+        }
+        offset += nblocks;
+    }
+    total
+}
+
+/// Relative RMS errors against measured torque.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Errors {
+    pub per_joint: Vec<f64>,
+    pub overall: f64,
+}

@@ -1,0 +1,161 @@
+//! Stage 6b, **the load-dependent effects** ([`Effect::LOADED`]): a second selection on top of
+//! the first stage's model, whose torque their columns use ([`load_stage`]); the final model's
+//! load-dependent part for a rescan of the cut-off ([`LoadModel`]).
+
+use super::base::BaseModel;
+use super::layout::Layout;
+use super::prepare::Prepared;
+use super::problem::{with_hint, Problem};
+use super::select::{select, Rules, Selection};
+use super::{Config, IdentifyError};
+use crate::effects::{Effect, EffectsSpec, Term};
+
+/// A model's load-dependent terms and the coefficients of its torque without them, over the
+/// columns of a first-stage layout (what [`super::scan::choose_cutoff`] needs to judge cut-offs with them).
+#[derive(Debug, Clone, PartialEq)]
+pub struct LoadModel {
+    pub terms: Vec<Term>,
+    pub coefs: Vec<f64>,
+}
+
+pub(super) fn load_model(
+    layout: &Layout,
+    terms: &[Term],
+    subset: &[usize],
+    x: &[f64],
+) -> Option<LoadModel> {
+    let loaded: Vec<Term> = terms
+        .iter()
+        .copied()
+        .filter(|t| t.effect.needs_load())
+        .collect();
+    if loaded.is_empty() {
+        return None;
+    }
+    // Load-dependent columns sort last, so the first stage's are the first ones.
+    let first = layout.ncols()
+        - layout
+            .terms
+            .iter()
+            .filter(|t| t.effect.needs_load())
+            .count();
+    let mut coefs = vec![0.0; first];
+    for (&c, &v) in subset.iter().zip(x) {
+        if c < first {
+            coefs[c] = v;
+        }
+    }
+    Some(LoadModel {
+        terms: loaded,
+        coefs,
+    })
+}
+
+/// The second stage for the load-dependent effects ([`Effect::LOADED`]): their columns use the
+/// torque the first stage's model predicts (rigid body and effects, parameters held fixed: the
+/// joint torque the gear transmits), so the problem is rebuilt with them and they are searched
+/// (or, declared, added) on top of the first stage's model. Without any accepted or declared, the first stage is returned as it
+/// is. (The fixed parameters saw every training block, so the candidates' held-out test is
+/// slightly optimistic — by one global, smooth estimate, not a per-block fit.)
+#[allow(clippy::type_complexity)]
+pub(super) fn load_stage(
+    base: &BaseModel,
+    train: &[Prepared],
+    cfg: &Config,
+    layout: Layout,
+    problem: Problem,
+    first: Selection,
+    declared: Vec<Term>,
+) -> Result<(Layout, Problem, Selection, Vec<Term>), IdentifyError> {
+    let n = base.dof();
+    let (fixed, search): (Vec<Term>, Vec<Term>) = match &cfg.effects {
+        EffectsSpec::Auto => (
+            Vec::new(),
+            Effect::LOADED
+                .iter()
+                .flat_map(|&effect| (0..n).map(move |joint| Term { effect, joint }))
+                .collect(),
+        ),
+        EffectsSpec::Fixed(t) => (
+            t.iter()
+                .copied()
+                .filter(|t| t.effect.needs_load())
+                .collect(),
+            Vec::new(),
+        ),
+    };
+    if fixed.is_empty() && search.is_empty() {
+        return Ok((layout, problem, first, declared));
+    }
+    let subset = problem.subset(&first.terms);
+    let w = problem.weights(&subset).map_err(|e| with_hint(e, train))?;
+    let fit = problem.fit(&subset, &w).map_err(|e| with_hint(e, train))?;
+    let mut l2 = layout.clone();
+    l2.terms.extend(fixed.iter().chain(&search));
+    l2.terms.sort();
+    l2.terms.dedup();
+    // The new terms sort last (their effects are the last variants): first-stage columns keep
+    // their indices.
+    l2.load = vec![0.0; l2.ncols()];
+    for (&c, &x) in subset.iter().zip(&fit.x) {
+        l2.load[c] = x;
+    }
+    let p2 = Problem::build(base, l2.clone(), train, cfg.blocks);
+    let start: Vec<Term> = first.terms.iter().chain(&fixed).copied().collect();
+    let second = select(&p2, &start, &search, &cfg.rules)?;
+    if fixed.is_empty() && second.steps.is_empty() {
+        let mut first = first;
+        first.collinear.extend(second.collinear);
+        // Why the second stage stopped is the last word if it had the better candidate.
+        if let Some(s) = second.stopped_on {
+            if first
+                .stopped_on
+                .as_ref()
+                .map_or(true, |f| s.heldout_gain > f.heldout_gain)
+            {
+                first.stopped_on = Some(s);
+            }
+        }
+        return Ok((layout, problem, first, declared));
+    }
+    // A first-stage effect may have stood in for the load-dependent one (a Coulomb term for
+    // the mean of load-dependent friction): each must pass the same test again against the
+    // final model without it, or it goes (last added first).
+    let mut terms = second.terms;
+    let mut dropped = Vec::new();
+    let once = Rules {
+        max_steps: 1,
+        ..cfg.rules
+    };
+    for s in first.steps.iter().rev() {
+        let without: Vec<Term> = terms.iter().copied().filter(|t| *t != s.added).collect();
+        if select(&p2, &without, &[s.added], &once)?.steps.is_empty() {
+            terms = without;
+            dropped.push(s.added);
+        }
+    }
+    let declared: Vec<Term> = declared.into_iter().chain(fixed).collect();
+    let mut model: Vec<String> = declared.iter().map(Term::label).collect();
+    let mut steps = Vec::new();
+    for mut s in first.steps.into_iter().chain(second.steps) {
+        if !dropped.contains(&s.added) {
+            model.push(s.label.clone());
+            s.model = model.clone();
+            steps.push(s);
+        }
+    }
+    let mut collinear = first.collinear;
+    collinear.extend(second.collinear);
+    Ok((
+        l2,
+        p2,
+        Selection {
+            steps,
+            terms,
+            stopped_on: second.stopped_on,
+            collinear,
+            dropped: dropped.iter().map(Term::label).collect(),
+        },
+        declared,
+    ))
+}

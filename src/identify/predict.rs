@@ -1,0 +1,258 @@
+//! **Predictions** of fitted models at a file's raw samples ([`Predicted`], from the rows of the
+//! estimated states or the parallel-filtered rows, as the file's smoothing says): the shared
+//! predictor of the errors, and the plot series and validation table of the outcome.
+
+use std::sync::Arc;
+
+use super::base::BaseModel;
+use super::layout::Layout;
+use super::ls;
+use super::outcome::ModelResult;
+use super::prepare::{raw_cores, raw_in_core, Prepared};
+use super::rows::Rows;
+use super::IdentifyError;
+use crate::derivative::States;
+use crate::log::{Table, TableWriter, SPILL_ROWS};
+
+/// Torque predictions of several coefficient sets (`[set][joint][active column]`) on a file's
+/// grid around a core `a..b`: `pred[set][j][k - lo]` for the sets asked for (the others stay
+/// empty), from the rows of the estimated states — and parallel-filtered when the file's
+/// [`Smoothing`] predicts from the filtered rows (the same thing: the filter is linear, so
+/// filtering a prediction equals predicting from filtered rows, at a fraction of the channels).
+pub(super) struct Predicted {
+    lo: usize,
+    pred: Vec<Vec<Vec<f64>>>,
+    /// The window's estimated states.
+    states: States,
+}
+
+impl Predicted {
+    pub(super) fn new(
+        p: &Prepared,
+        rows: &mut Rows,
+        active: &[Vec<usize>],
+        (a, b): (usize, usize),
+        coefs: &[Vec<Vec<f64>>],
+        wanted: &[bool],
+    ) -> Predicted {
+        let (n, nc) = (rows.layout.dof, rows.layout.ncols());
+        let g = p.est.grid;
+        let filtered = p.smoothing.filtered_prediction;
+        // One sample either side at least, for the interpolation to raw sample times.
+        let reach = if filtered {
+            p.rfilter.as_zero_phase().reach().max(1)
+        } else {
+            1
+        };
+        let (lo, hi) = (a.saturating_sub(reach), (b + reach).min(g.n));
+        let w = hi - lo;
+        let mut pred: Vec<Vec<Vec<f64>>> = wanted
+            .iter()
+            .map(|&u| if u { vec![vec![0.0; w]; n] } else { Vec::new() })
+            .collect();
+        let mut buf = vec![0.0; n * nc];
+        let mut row: Vec<Vec<f64>> = active.iter().map(|a| vec![0.0; a.len()]).collect();
+        let states = p.states(lo, hi);
+        for k in lo..hi {
+            rows.fill_grid(&states, k, &mut buf);
+            for (j, rj) in row.iter_mut().enumerate() {
+                for (v, &c) in rj.iter_mut().zip(&active[j]) {
+                    *v = buf[j * nc + c];
+                }
+            }
+            for (set, out) in coefs.iter().zip(pred.iter_mut()) {
+                for (j, o) in out.iter_mut().enumerate() {
+                    o[k - lo] = ls::dot(&row[j], &set[j]);
+                }
+            }
+        }
+        if filtered {
+            let mut chans: Vec<&mut [f64]> = pred
+                .iter_mut()
+                .flatten()
+                .map(|c| c.as_mut_slice())
+                .collect();
+            p.rfilter
+                .as_zero_phase()
+                .apply_many(&mut chans, lo == 0, hi == g.n);
+        }
+        Predicted { lo, pred, states }
+    }
+
+    /// Set `c`'s prediction for joint `j` at grid position `(k, s)` (see [`super::prepare::grid_pos`]).
+    pub(super) fn at(&self, c: usize, j: usize, (k, s): (usize, f64)) -> f64 {
+        let x = &self.pred[c][j];
+        let v = x[k - self.lo];
+        if s > 0.0 {
+            v + s * (x[k + 1 - self.lo] - v)
+        } else {
+            v
+        }
+    }
+}
+
+/// A model's parameters spread over joint `j`'s active columns (zero outside the model), so a
+/// prediction is one contiguous dot product.
+pub(super) fn spread(active: &[usize], subset: &[usize], x: &[f64]) -> Vec<f64> {
+    active
+        .iter()
+        .map(|c| subset.iter().position(|s| s == c).map_or(0.0, |k| x[k]))
+        .collect()
+}
+
+/// `(velocity, residual)` points before and after.
+pub type BeforeAfter = (Vec<(f64, f64)>, Vec<(f64, f64)>);
+
+/// Plot data: per joint, (velocity, residual) of the training data before and after.
+#[derive(Debug, Clone, Default)]
+pub struct Series {
+    pub resid_vs_vel: Vec<BeforeAfter>,
+    /// Validation: per joint, (t, measured, before, after).
+    pub validation: Vec<Vec<(f64, f64, f64, f64)>>,
+}
+
+/// The rows of `validation_prediction.csv`: per validation sample used, its time, then the
+/// measured τ and the torques predicted by the declared (`before`) and augmented (`after`)
+/// models, n each — in a [`Table`] (a long validation log's spill to a temporary file).
+#[derive(Debug, Clone)]
+pub struct Predictions {
+    pub dof: usize,
+    table: Arc<Table>,
+}
+
+impl Predictions {
+    pub fn len(&self) -> usize {
+        self.table.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.table.is_empty()
+    }
+
+    /// Calls `f(t, tau, before, after)` for rows `a..b` in order.
+    pub fn rows(&self, a: usize, b: usize, mut f: impl FnMut(f64, &[f64], &[f64], &[f64])) {
+        let n = self.dof;
+        self.table.rows(a, b, |r| {
+            f(r[0], &r[1..1 + n], &r[1 + n..1 + 2 * n], &r[1 + 2 * n..])
+        });
+    }
+}
+
+/// Calls `f(t, dq, tau, before, after)` for every `stride`-th used raw sample of `p`, with
+/// the predictions of both models (see [`Predicted`]), the estimated q̇ at the
+/// sample and its measured τ.
+pub(super) fn for_predictions(
+    base: &BaseModel,
+    layout: &Layout,
+    p: &Prepared,
+    models: [&ModelResult; 2],
+    stride: usize,
+    mut f: impl FnMut(f64, &[f64], &[f64], &[f64], &[f64]),
+) {
+    let n = layout.dof;
+    let active: Vec<Vec<usize>> = (0..n).map(|j| layout.active(j)).collect();
+    let coef: Vec<Vec<Vec<f64>>> = models
+        .iter()
+        .map(|m| {
+            (0..n)
+                .map(|j| spread(&active[j], &m.subset, &m.x))
+                .collect()
+        })
+        .collect();
+    let mut rows = Rows::new(base, layout);
+    let (mut dq, mut pb, mut pa) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+    for core in raw_cores(p) {
+        let pc = Predicted::new(p, &mut rows, &active, core, &coef, &[true, true]);
+        raw_in_core(p, core, stride, |_, t, tau, (k, s)| {
+            for j in 0..n {
+                let (d, i) = (&pc.states.dq[j], k - pc.lo);
+                dq[j] = if s > 0.0 {
+                    d[i] + s * (d[i + 1] - d[i])
+                } else {
+                    d[i]
+                };
+                pb[j] = pc.at(0, j, (k, s));
+                pa[j] = pc.at(1, j, (k, s));
+            }
+            f(t, &dq, tau, &pb, &pa);
+        });
+    }
+}
+
+pub(super) fn make_series(
+    base: &BaseModel,
+    layout: &Layout,
+    train: &[Prepared],
+    val: Option<&Prepared>,
+    before: &ModelResult,
+    after: &ModelResult,
+) -> Series {
+    let n = layout.dof;
+    let total: usize = train.iter().map(|p| p.raw_keep.1 - p.raw_keep.0).sum();
+    let stride = total.div_ceil(3000).max(1);
+    let mut rv: Vec<BeforeAfter> = vec![(Vec::new(), Vec::new()); n];
+    for p in train {
+        for_predictions(
+            base,
+            layout,
+            p,
+            [before, after],
+            stride,
+            |_, dq, tau, pb, pa| {
+                for j in 0..n {
+                    rv[j].0.push((dq[j], tau[j] - pb[j]));
+                    rv[j].1.push((dq[j], tau[j] - pa[j]));
+                }
+            },
+        );
+    }
+    let mut validation = vec![Vec::new(); n];
+    if let Some(p) = val {
+        let stride = (p.raw_keep.1 - p.raw_keep.0).div_ceil(4000).max(1);
+        for_predictions(
+            base,
+            layout,
+            p,
+            [before, after],
+            stride,
+            |t, _, tau, pb, pa| {
+                for j in 0..n {
+                    validation[j].push((t, tau[j], pb[j], pa[j]));
+                }
+            },
+        );
+    }
+    Series {
+        resid_vs_vel: rv,
+        validation,
+    }
+}
+
+pub(super) fn predictions(
+    base: &BaseModel,
+    layout: &Layout,
+    p: &Prepared,
+    before: &ModelResult,
+    after: &ModelResult,
+) -> Result<Predictions, IdentifyError> {
+    let n = layout.dof;
+    let mut table = TableWriter::new(1 + 3 * n, SPILL_ROWS);
+    let (mut row, mut failed) = (Vec::with_capacity(1 + 3 * n), None);
+    for_predictions(base, layout, p, [before, after], 1, |t, _, tau, pb, pa| {
+        row.clear();
+        row.push(t);
+        row.extend(tau.iter().chain(pb).chain(pa));
+        if let Err(e) = table.push(&row) {
+            failed.get_or_insert(e);
+        }
+    });
+    let table = match failed {
+        Some(e) => Err(e),
+        None => table.finish(),
+    }
+    .map_err(IdentifyError::Spill)?;
+    Ok(Predictions {
+        dof: n,
+        table: Arc::new(table),
+    })
+}

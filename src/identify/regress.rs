@@ -1,0 +1,132 @@
+//! Stage 3, **regression**: a file's rows built chunk by chunk on its grid, parallel-filtered
+//! (rows and τ, zero-phase), decimated to [`KEEP_RATE_PER_CUTOFF`] times the regression cut-off
+//! and folded into incremental QR factors per time block and joint ([`accumulate_fit`]).
+
+use rayon::prelude::*;
+
+use super::base::BaseModel;
+use super::layout::Layout;
+use super::ls::Accumulator;
+use super::prepare::{cores, Prepared};
+use super::rows::Rows;
+
+/// Rows of the filtered regression are kept at this many times the cut-off (Gautier's
+/// decimation after parallel filtering): the filtered columns carry nothing above a few
+/// cut-offs (a 4th-order zero-phase Butterworth is down 2.6e-6 at 5·fc), so sums over the
+/// decimated rows equal those over all rows to that order, at a fraction of the cost.
+pub const KEEP_RATE_PER_CUTOFF: f64 = 20.0;
+
+/// Every how many grid samples a filtered regression row is kept.
+pub(super) fn decimation(p: &Prepared) -> usize {
+    let r = p.est.report.fs_hz / (KEEP_RATE_PER_CUTOFF * p.rfilter_hz);
+    (r.floor() as usize).max(1)
+}
+
+/// Regression rows of one file on its grid around a core `a..b`: the grid samples `lo..hi`
+/// (the core with the regression filter's reach on each side); per joint its active columns
+/// then τ, column-major: `cols[j][l * w + (k - lo)]`, `w = hi - lo`.
+struct Chunk {
+    lo: usize,
+    hi: usize,
+    cols: Vec<Vec<f64>>,
+}
+
+impl Chunk {
+    /// Unfiltered rows and the measured τ on the grid around the core `a..b`.
+    fn new(p: &Prepared, rows: &mut Rows, active: &[Vec<usize>], (a, b): (usize, usize)) -> Chunk {
+        let (n, nc) = (rows.layout.dof, rows.layout.ncols());
+        let reach = p.rfilter.as_zero_phase().reach();
+        let (lo, hi) = (a.saturating_sub(reach), (b + reach).min(p.est.grid.n));
+        let w = hi - lo;
+        let st = p.states(lo, hi);
+        let tau = p.grid_tau(lo, hi);
+        let mut cols: Vec<Vec<f64>> = active
+            .iter()
+            .map(|a| vec![0.0; (a.len() + 1) * w])
+            .collect();
+        let mut buf = vec![0.0; n * nc];
+        for k in lo..hi {
+            rows.fill_grid(&st, k, &mut buf);
+            for j in 0..n {
+                for (l, &c) in active[j].iter().enumerate() {
+                    cols[j][l * w + (k - lo)] = buf[j * nc + c];
+                }
+                cols[j][active[j].len() * w + (k - lo)] = tau[j][k - lo];
+            }
+        }
+        Chunk { lo, hi, cols }
+    }
+
+    fn w(&self) -> usize {
+        self.hi - self.lo
+    }
+
+    /// Parallel filtering of one joint's channels (all-zero channels are left as they are).
+    fn filter_joint(p: &Prepared, cols: &mut [f64], w: usize, lo: usize, hi: usize) {
+        let mut chans: Vec<&mut [f64]> = cols
+            .chunks_mut(w)
+            .filter(|ch| ch.iter().any(|v| *v != 0.0))
+            .collect();
+        p.rfilter
+            .as_zero_phase()
+            .apply_many(&mut chans, lo == 0, hi == p.est.grid.n);
+    }
+}
+
+/// Parallel-filtered regression of one file into `[block][joint]` accumulators, rows decimated
+/// to [`KEEP_RATE_PER_CUTOFF`]·fc.
+pub(super) fn accumulate_fit(
+    p: &Prepared,
+    base: &BaseModel,
+    layout: &Layout,
+    nblocks: usize,
+) -> Vec<Vec<Accumulator>> {
+    let (n, nc) = (layout.dof, layout.ncols());
+    let decim = decimation(p);
+    // `[joint][block]` while accumulating, so joints run in parallel.
+    let mut accs: Vec<Vec<Accumulator>> = layout
+        .accumulators()
+        .into_iter()
+        .map(|a| vec![a; nblocks])
+        .collect();
+    let active: Vec<Vec<usize>> = (0..n).map(|j| layout.active(j)).collect();
+    let mut rows = Rows::new(base, layout);
+    let (k0, k1) = p.keep;
+    for (a, b) in cores(p, k0, k1) {
+        let mut chunk = Chunk::new(p, &mut rows, &active, (a, b));
+        let (lo, hi, w) = (chunk.lo, chunk.hi, chunk.w());
+        let keep: Vec<(usize, usize)> = (a..b)
+            .filter(|&k| (k - k0) % decim == 0)
+            .map(|k| (k, p.block_of(k, nblocks)))
+            .collect();
+        chunk
+            .cols
+            .par_iter_mut()
+            .zip(accs.par_iter_mut())
+            .zip(active.par_iter())
+            .for_each(|((cj, acc), act)| {
+                Chunk::filter_joint(p, cj, w, lo, hi);
+                let mut row = vec![0.0; nc + 1];
+                for &(k, blk) in &keep {
+                    for (l, &c) in act.iter().enumerate() {
+                        row[c] = cj[l * w + (k - lo)];
+                    }
+                    row[nc] = cj[act.len() * w + (k - lo)];
+                    acc[blk].push(&row);
+                }
+            });
+    }
+    finish_transposed(accs, nblocks)
+}
+
+/// `[joint][block]` → finished `[block][joint]`.
+fn finish_transposed(accs: Vec<Vec<Accumulator>>, nblocks: usize) -> Vec<Vec<Accumulator>> {
+    let mut out: Vec<Vec<Accumulator>> = (0..nblocks).map(|_| Vec::new()).collect();
+    for joint in accs {
+        for (b, mut a) in joint.into_iter().enumerate() {
+            a.finish();
+            out[b].push(a);
+        }
+    }
+    out
+}

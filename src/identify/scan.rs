@@ -1,0 +1,230 @@
+//! Stage 0, **the cut-off and smoothing scan** ([`choose_cutoff`]): candidate derivative
+//! cut-offs from the spectrum, each with every [`Smoothing`], judged by held-out error against
+//! the measured torque; long training sets are scanned on evenly spaced pieces
+//! ([`scan_pieces`]).
+
+use serde::Serialize;
+
+use super::base::BaseModel;
+use super::layout::make_layout;
+use super::load_stage::LoadModel;
+use super::prepare::{PrepCache, Prepared, Smoothing};
+use super::problem::Problem;
+use super::{Config, IdentifyError, MIN_SAMPLES};
+use crate::effects::Term;
+use crate::log::Log;
+
+/// Most samples the cut-off scan fits per cut-off: longer training sets are scanned on
+/// [`SCAN_PIECES`] evenly spaced pieces of each file (the final fit uses every sample).
+pub const SCAN_SAMPLES: usize = 100_000;
+
+/// Pieces per file of the cut-off scan of a long training set.
+pub const SCAN_PIECES: usize = 4;
+
+/// The files the cut-off scan fits: `train` itself up to [`SCAN_SAMPLES`] samples in all, else
+/// [`SCAN_PIECES`] evenly spaced pieces of each file, of lengths proportional to the files'
+/// (each piece filtered on its own, as a file of its own).
+pub fn scan_pieces(train: &[Log]) -> Vec<Log> {
+    let total: usize = train.iter().map(|t| t.len()).sum();
+    if total <= SCAN_SAMPLES {
+        return train.to_vec();
+    }
+    let mut out = Vec::new();
+    for t in train {
+        let share = (SCAN_SAMPLES as f64 * t.len() as f64 / total as f64) as usize;
+        let piece = share / SCAN_PIECES;
+        if piece < 4 * MIN_SAMPLES {
+            out.push(t.clone());
+            continue;
+        }
+        let gap = (t.len() - SCAN_PIECES * piece) / SCAN_PIECES;
+        for i in 0..SCAN_PIECES {
+            let lo = gap / 2 + i * (piece + gap);
+            out.push(t.slice(lo, lo + piece));
+        }
+    }
+    out
+}
+
+/// One point of the cut-off scan.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CutoffTrial {
+    pub cutoff_hz: f64,
+    pub smoothing: Smoothing,
+    /// Held-out relative RMS error against the measured torque (leave-one-block-out).
+    pub heldout_error: f64,
+}
+
+/// What the scan chose: the derivative cut-off (`None` = the spectral rule) and the smoothing.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FilterChoice {
+    pub cutoff_hz: Option<f64>,
+    pub smoothing: Smoothing,
+}
+
+/// The automatic cut-off: the spectrum gives the motion band `f_m` (largest over files and
+/// joints, see [`crate::derivative::auto_cutoff`]); cut-offs `f_m · 2^(k/2)`, k = −2..7, below the
+/// noise edge and 0.2·fs are tried (only the given one with `--cutoff`), each with every
+/// [`Smoothing`] (regression filter at 1 or ½ of the cut-off, predictions from the filtered
+/// rows or from the states), and the combination with the smallest held-out error against the
+/// measured torque wins (rigid model plus every candidate effect, leave-one-block-out, the same
+/// samples for every trial). Too low a cut-off distorts the motion; too high a one lets noise
+/// and vibration into q̈, which biases least squares towards zero — the scan sees both.
+pub fn choose_cutoff(
+    base: &BaseModel,
+    table: Option<&crate::dh::DhTable>,
+    train: &[Log],
+    cfg: &Config,
+    cache: &mut PrepCache,
+    load: Option<&LoadModel>,
+) -> Result<(FilterChoice, Vec<CutoffTrial>), IdentifyError> {
+    let fallback = FilterChoice {
+        cutoff_hz: cfg.derivative.cutoff_hz,
+        smoothing: cfg.smoothing.unwrap_or_default(),
+    };
+    if cfg.derivative.cutoff_hz.is_some() && cfg.smoothing.is_some() {
+        return Ok((fallback, Vec::new()));
+    }
+    let first = cache.get_all(train, cfg, cfg.derivative.cutoff_hz, Smoothing::default())?;
+    let grid: Vec<f64> = match cfg.derivative.cutoff_hz {
+        Some(fc) => vec![fc],
+        None => {
+            let (mut band, mut cap) = (0.0f64, f64::INFINITY);
+            for p in &first {
+                let fs = p.est.report.fs_hz;
+                cap = cap.min(0.2 * fs);
+                for c in &p.est.report.per_channel {
+                    band = band.max(c.motion_band_hz);
+                    cap = cap.min(1.25 * c.noise_edge_hz.max(c.motion_band_hz));
+                }
+            }
+            if band.is_nan() || band <= 0.0 {
+                Vec::new()
+            } else {
+                (-2..=7)
+                    .map(|k| band * 2f64.powf(k as f64 / 2.0))
+                    .filter(|&f| f <= cap)
+                    .collect()
+            }
+        }
+    };
+    let Some(&lowest) = grid.first() else {
+        return Ok((fallback, Vec::new()));
+    };
+    let (ratios, modes): (Vec<f64>, Vec<bool>) = match cfg.smoothing {
+        Some(s) => (vec![s.regression_ratio], vec![s.filtered_prediction]),
+        None => (Smoothing::RATIOS.to_vec(), vec![false, true]),
+    };
+    let edge_fc = lowest * ratios.iter().copied().fold(1.0, f64::min);
+    let mut layout = make_layout(base, table, &first, cfg).0;
+    if let Some(lm) = load.filter(|lm| lm.coefs.len() == layout.ncols()) {
+        layout.terms.extend(&lm.terms);
+        layout.load = lm.coefs.clone();
+        layout.load.resize(layout.ncols(), 0.0);
+    }
+    let scan_files = scan_pieces(train);
+    let all: Vec<Term> = layout.terms.clone();
+    let mut trials = Vec::new();
+    // One cut-off and regression ratio: both predictions judged on one problem.
+    let trial = |trials: &mut Vec<CutoffTrial>, fc: f64, ratio: f64| -> Result<(), IdentifyError> {
+        let sm = Smoothing {
+            regression_ratio: ratio,
+            filtered_prediction: false,
+        };
+        // Not cached: one cut-off's estimates at a time (memory stays that of one copy).
+        let mut preps: Vec<Prepared> = scan_files
+            .iter()
+            .map(|t| Prepared::with_cutoff(t.clone(), cfg, Some(fc), sm, Some(edge_fc)))
+            .collect::<Result<_, _>>()?;
+        let problem = Problem::build(base, layout.clone(), &preps, cfg.blocks);
+        let subset = problem.subset(&all);
+        let Ok(w) = problem.weights(&subset) else {
+            return Ok(());
+        };
+        for &filtered in &modes {
+            for p in &mut preps {
+                p.smoothing.filtered_prediction = filtered;
+            }
+            if let Ok(e) = problem.cv_raw(base, &preps, &subset, &w) {
+                trials.push(CutoffTrial {
+                    cutoff_hz: fc,
+                    smoothing: preps[0].smoothing,
+                    heldout_error: e,
+                });
+            }
+        }
+        Ok(())
+    };
+    for &fc in &grid {
+        for &ratio in &ratios {
+            trial(&mut trials, fc, ratio)?;
+        }
+    }
+    let choice = best_trial(&trials).map_or(fallback, |b| FilterChoice {
+        cutoff_hz: Some(b.cutoff_hz),
+        smoothing: b.smoothing,
+    });
+    trials.sort_by(|a, b| a.cutoff_hz.total_cmp(&b.cutoff_hz));
+    Ok((choice, trials))
+}
+
+/// The trial with the smallest held-out error (the first of equals).
+fn best_trial(trials: &[CutoffTrial]) -> Option<&CutoffTrial> {
+    trials
+        .iter()
+        .fold(None, |best: Option<&CutoffTrial>, t| match best {
+            Some(b) if b.heldout_error <= t.heldout_error => Some(b),
+            _ => Some(t),
+        })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::log::Log;
+
+    fn log(len: usize) -> Log {
+        Log::from(crate::data::Trajectory {
+            source: "log.csv".into(),
+            dof: 1,
+            t: (0..len).map(|k| k as f64 * 1e-3).collect(),
+            q: (0..len).map(|k| k as f64).collect(),
+            dq: None,
+            ddq: None,
+            tau: Some(vec![0.0; len]),
+        })
+    }
+
+    #[test]
+    fn short_training_sets_are_scanned_whole_long_ones_on_spread_pieces() {
+        let short = vec![log(30_000), log(40_000)];
+        let same = scan_pieces(&short);
+        assert!(same
+            .iter()
+            .zip(&short)
+            .all(|(a, b)| a.key() == b.key() && a.len() == b.len()));
+
+        let long = vec![log(900_000), log(300_000)];
+        let pieces = scan_pieces(&long);
+        assert_eq!(pieces.len(), 2 * SCAN_PIECES);
+        let total: usize = pieces.iter().map(|p| p.len()).sum();
+        assert!(
+            total <= SCAN_SAMPLES && total > SCAN_SAMPLES * 9 / 10,
+            "{total}"
+        );
+        // Proportional to the files, evenly spread over each, in order, rows copied intact.
+        let first: Vec<&Log> = pieces[..SCAN_PIECES].iter().collect();
+        assert_eq!(first[0].len(), 3 * pieces[SCAN_PIECES].len());
+        let starts: Vec<f64> = first.iter().map(|p| p.read(0, 1).q[0]).collect();
+        assert!(starts[0] > 0.0 && starts[3] + first[3].len() as f64 <= 900_000.0);
+        let step = starts[1] - starts[0];
+        assert!(starts.windows(2).all(|w| w[1] - w[0] == step) && step > 200_000.0);
+        assert!(first[1]
+            .read(0, first[1].len())
+            .q
+            .iter()
+            .enumerate()
+            .all(|(i, &v)| v == starts[1] + i as f64));
+        assert!(first[0].source.starts_with("log.csv[rows "));
+    }
+}
