@@ -1,5 +1,6 @@
 //! Writes what `dynid identify` found: `report.md`, SVG plots, `report.json` and, with
-//! validation data, `validation_prediction.csv`.
+//! validation data, `validation_prediction.csv`; a leave-one-out study's summary and folds in
+//! [`leave_one_out`].
 //!
 //! Every file is rendered in memory first and then written atomically
 //! ([`crate::io::atomic_write`]), so an error leaves no partial report.
@@ -19,8 +20,10 @@ use std::path::{Path, PathBuf};
 use plotters::prelude::*;
 use serde_json::{json, Value};
 
-use crate::identify::{Errors, Outcome, Predictions};
+use crate::identify::{Errors, Outcome, Predictions, KEEP_RATE_PER_CUTOFF};
 use crate::io::{atomic_write, WriteError};
+
+pub mod leave_one_out;
 
 /// Why a report could not be written.
 #[derive(Debug, thiserror::Error)]
@@ -210,7 +213,6 @@ fn num(v: f64) -> String {
 
 /// The `report.md` text.
 pub fn markdown(o: &Outcome, command: &str, plots: &[String]) -> String {
-    let n = o.dof;
     let mut m = String::new();
     let _ = writeln!(m, "# Identification of `{}`\n", o.arm);
     let _ = writeln!(m, "Reproduce: `{command}`\n");
@@ -231,6 +233,24 @@ pub fn markdown(o: &Outcome, command: &str, plots: &[String]) -> String {
         }
     );
 
+    errors_section(&mut m, o);
+    steps_section(&mut m, o);
+    evidence_section(&mut m, o);
+    parameters_section(&mut m, o);
+    data_section(&mut m, o);
+    let _ = writeln!(m, "\n## Plots\n");
+    for p in plots {
+        let _ = writeln!(m, "![{p}]({p})\n");
+    }
+    if o.predictions.is_some() {
+        let _ = writeln!(m, "`validation_prediction.csv`: `t`, measured `tau`, and the torques predicted by the declared (`before`) and augmented (`after`) models at every validation sample used; the errors above can be recomputed from it.");
+    }
+    m
+}
+
+/// The torque error table: declared and augmented model, training and validation.
+fn errors_section(m: &mut String, o: &Outcome) {
+    let n = o.dof;
     let _ = writeln!(
         m,
         "## Torque error (relative RMS ‖τ̂−τ‖/‖τ‖ against the torque as measured in the file)\n"
@@ -248,7 +268,10 @@ pub fn markdown(o: &Outcome, command: &str, plots: &[String]) -> String {
         }
     }
     let _ = writeln!(m);
+}
 
+/// The rigid → + effect → … table.
+fn steps_section(m: &mut String, o: &Outcome) {
     let _ = writeln!(m, "## Steps: rigid → + effect → …\n");
     let _ = writeln!(
         m,
@@ -266,7 +289,10 @@ pub fn markdown(o: &Outcome, command: &str, plots: &[String]) -> String {
         );
     }
     let _ = writeln!(m);
+}
 
+/// The evidence for each effect added, why the search stopped, and what was merged, dropped or skipped.
+fn evidence_section(m: &mut String, o: &Outcome) {
     let _ = writeln!(m, "## Evidence for each effect added\n");
     let _ = writeln!(
         m,
@@ -320,7 +346,10 @@ pub fn markdown(o: &Outcome, command: &str, plots: &[String]) -> String {
         );
     }
     let _ = writeln!(m);
+}
 
+/// The augmented model's parameters and its conditioning.
+fn parameters_section(m: &mut String, o: &Outcome) {
     let _ = writeln!(m, "## Identified parameters (augmented model)\n");
     let _ = writeln!(
         m,
@@ -366,7 +395,10 @@ pub fn markdown(o: &Outcome, command: &str, plots: &[String]) -> String {
             .collect::<Vec<_>>()
             .join(", ")
     );
+}
 
+/// The files, filters and derivative estimator, and the cut-off scan.
+fn data_section(m: &mut String, o: &Outcome) {
     let _ = writeln!(m, "## Data, filter and derivative estimator\n");
     let _ = writeln!(m, "| file | role | rows (used) | duration | sampling dt median / min / max | resampled | filter | q̇ | q̈ | regression filter | regression row every |");
     let _ = writeln!(m, "|---|---|---|---|---|---|---|---|---|---|---|");
@@ -406,15 +438,12 @@ pub fn markdown(o: &Outcome, command: &str, plots: &[String]) -> String {
         );
     }
     if !o.cutoff_scan.is_empty() {
-        let total: usize = o.train.iter().map(|f| f.rows).sum();
-        let scope = if total > crate::identify::SCAN_SAMPLES {
-            format!(
+        let scope = match o.scan_sampling {
+            Some(s) => format!(
                 "; fitted on {} evenly spaced pieces of each training file, {} samples in all — the final fit uses every sample",
-                crate::identify::SCAN_PIECES,
-                crate::identify::SCAN_SAMPLES
-            )
-        } else {
-            String::new()
+                s.pieces_per_file, s.samples
+            ),
+            None => String::new(),
         };
         let fixed_fc = o
             .cutoff_scan
@@ -455,21 +484,13 @@ pub fn markdown(o: &Outcome, command: &str, plots: &[String]) -> String {
         m,
         "\nThe regression filter (zero-phase, at {}× the derivative filter's cut-off) was applied to the measured torque and to every regressor column (parallel filtering) to build the regression, whose rows are then kept at {}× its cut-off or more (the table's last column: the filtered columns carry nothing above a few cut-offs). Models predict the torque from {}; errors are computed against the unfiltered torque at every one of the file's own samples. Filter edges are dropped.",
         sm.regression_ratio,
-        crate::identify::KEEP_RATE_PER_CUTOFF,
+        KEEP_RATE_PER_CUTOFF,
         if sm.filtered_prediction {
             "the parallel-filtered rows, the very rows the parameters were fitted to (right when the torque is smooth and the motion kinks, e.g. an arm driven by smooth torques whose friction flips at velocity reversals)"
         } else {
             "the rows of the estimated states (right when the motion is smooth and the torque jumps, e.g. Coulomb friction under a stiff position loop)"
         }
     );
-    let _ = writeln!(m, "\n## Plots\n");
-    for p in plots {
-        let _ = writeln!(m, "![{p}]({p})\n");
-    }
-    if o.predictions.is_some() {
-        let _ = writeln!(m, "`validation_prediction.csv`: `t`, measured `tau`, and the torques predicted by the declared (`before`) and augmented (`after`) models at every validation sample used; the errors above can be recomputed from it.");
-    }
-    m
 }
 
 fn bounds(pts: impl Iterator<Item = (f64, f64)>) -> (f64, f64, f64, f64) {

@@ -147,7 +147,10 @@ pub fn run(args: &Args) -> Result<()> {
             .into());
         }
         let outs = identify::leave_one_out(&arm, train, &cfg).map_err(bad)?;
-        return write_loo(&args.out, &outs, &command);
+        let summary = crate::report::leave_one_out::write(&args.out, &outs, &command)
+            .context("writing the leave-one-out report")?;
+        print!("{summary}");
+        return Ok(());
     }
     let val = args.validate.as_deref().map(load).transpose()?;
     let outcome = identify::run(&arm, train, val, &cfg).map_err(bad)?;
@@ -183,65 +186,4 @@ fn print_summary(o: &Outcome) {
             f.smoothing.label()
         );
     }
-}
-
-fn write_loo(dir: &Path, outs: &[Outcome], command: &str) -> Result<()> {
-    let mut md = String::from("# Leave-one-out identification\n\n");
-    let _ = writeln!(md, "Reproduce: `{command}`\n");
-    let _ = writeln!(
-        md,
-        "| held-out file | effects found | cut-off (Hz) | regression filter, prediction | validation before | validation after |"
-    );
-    let _ = writeln!(md, "|---|---|---|---|---|---|");
-    let mut rows = Vec::new();
-    let mut reports = Vec::new();
-    for o in outs {
-        let v = o
-            .validate
-            .as_ref()
-            .map(|f| f.file.clone())
-            .unwrap_or_default();
-        let found: Vec<String> = o.selection.steps.iter().map(|s| s.label.clone()).collect();
-        let (b, a) = (
-            o.before.validation.as_ref().map_or(f64::NAN, |e| e.overall),
-            o.after.validation.as_ref().map_or(f64::NAN, |e| e.overall),
-        );
-        let fc = o.train.first().map_or(f64::NAN, |f| f.derivative.cutoff_hz);
-        let sm = o.train.first().map(|f| f.smoothing).unwrap_or_default();
-        let _ = writeln!(
-            md,
-            "| `{v}` | {} | {fc:.2} | {} | {:.2} % | {:.2} % |",
-            found.join(", "),
-            sm.label(),
-            100.0 * b,
-            100.0 * a
-        );
-        rows.push(serde_json::json!({"heldout": v, "effects_found": found, "cutoff_hz": fc, "smoothing": sm, "validation_before": o.before.validation, "validation_after": o.after.validation, "steps": o.steps}));
-        let stem = Path::new(&v)
-            .file_name()
-            .map(|s| {
-                s.to_string_lossy()
-                    .replace(".csv.gz", "")
-                    .replace(".csv", "")
-            })
-            .unwrap_or_default();
-        reports.push((dir.join(format!("heldout_{stem}")), o));
-    }
-    let pooled = identify::pooled_validation(outs);
-    if let Some((b, a)) = &pooled {
-        let _ = writeln!(md, "\nPooled over all held-out files (‖τ̂−τ‖/‖τ‖ against the measured torque): before {:.2} %, after {:.2} % (per joint before {:?}, after {:?}).", 100.0 * b.overall, 100.0 * a.overall, b.per_joint, a.per_joint);
-    }
-    let json = serde_json::json!({"folds": rows, "pooled": pooled.map(|(b, a)| serde_json::json!({"before": b, "after": a})), "command": command});
-    for (d, o) in &reports {
-        crate::report::write(d, o, command).context("writing a fold's report")?;
-    }
-    crate::io::atomic_write(&dir.join("leave_one_out.md"), |w| {
-        w.write_all(md.as_bytes())
-    })?;
-    let text = serde_json::to_string_pretty(&json).unwrap_or_default();
-    crate::io::atomic_write(&dir.join("leave_one_out.json"), |w| {
-        w.write_all(text.as_bytes())
-    })?;
-    print!("{md}");
-    Ok(())
 }

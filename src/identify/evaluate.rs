@@ -1,6 +1,6 @@
 //! Stage 5, **errors against the measured torque**: models' residuals at every used raw sample
 //! of the files, with their full-data and their leave-one-block-out parameters ([`raw_sums`]),
-//! as relative RMS errors ([`Errors`]).
+//! as relative RMS errors ([`Errors`]) of each model ([`ModelResult`]).
 
 use rayon::prelude::*;
 use serde::Serialize;
@@ -148,6 +148,20 @@ pub fn raw_sums(
         offset += nblocks;
     }
     total
+}
+
+/// A fitted model and its errors.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ModelResult {
+    pub terms: Vec<String>,
+    pub train: Errors,
+    pub validation: Option<Errors>,
+    /// Held-out error of leave-one-block-out refits on the (filtered) training data.
+    pub heldout_rms: f64,
+    #[serde(skip)]
+    pub subset: Vec<usize>,
+    #[serde(skip)]
+    pub x: Vec<f64>,
 }
 
 /// Relative RMS errors against measured torque.

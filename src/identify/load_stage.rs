@@ -6,7 +6,7 @@ use super::base::BaseModel;
 use super::layout::Layout;
 use super::prepare::Prepared;
 use super::problem::{with_hint, Problem};
-use super::select::{select, Rules, Selection};
+use super::select::{select, Rules, Selected, Selection};
 use super::{Config, IdentifyError};
 use crate::effects::{Effect, EffectsSpec, Term};
 
@@ -57,16 +57,17 @@ pub(super) fn load_model(
 /// (or, declared, added) on top of the first stage's model. Without any accepted or declared, the first stage is returned as it
 /// is. (The fixed parameters saw every training block, so the candidates' held-out test is
 /// slightly optimistic — by one global, smooth estimate, not a per-block fit.)
-#[allow(clippy::type_complexity)]
 pub(super) fn load_stage(
     base: &BaseModel,
     train: &[Prepared],
     cfg: &Config,
-    layout: Layout,
-    problem: Problem,
-    first: Selection,
-    declared: Vec<Term>,
-) -> Result<(Layout, Problem, Selection, Vec<Term>), IdentifyError> {
+    first: Selected,
+) -> Result<Selected, IdentifyError> {
+    let Selected {
+        problem,
+        selection: first,
+        declared,
+    } = first;
     let n = base.dof();
     let (fixed, search): (Vec<Term>, Vec<Term>) = match &cfg.effects {
         EffectsSpec::Auto => (
@@ -85,12 +86,16 @@ pub(super) fn load_stage(
         ),
     };
     if fixed.is_empty() && search.is_empty() {
-        return Ok((layout, problem, first, declared));
+        return Ok(Selected {
+            problem,
+            selection: first,
+            declared,
+        });
     }
     let subset = problem.subset(&first.terms);
     let w = problem.weights(&subset).map_err(|e| with_hint(e, train))?;
     let fit = problem.fit(&subset, &w).map_err(|e| with_hint(e, train))?;
-    let mut l2 = layout.clone();
+    let mut l2 = problem.layout.clone();
     l2.terms.extend(fixed.iter().chain(&search));
     l2.terms.sort();
     l2.terms.dedup();
@@ -100,7 +105,7 @@ pub(super) fn load_stage(
     for (&c, &x) in subset.iter().zip(&fit.x) {
         l2.load[c] = x;
     }
-    let p2 = Problem::build(base, l2.clone(), train, cfg.blocks);
+    let p2 = Problem::build(base, l2, train, cfg.blocks);
     let start: Vec<Term> = first.terms.iter().chain(&fixed).copied().collect();
     let second = select(&p2, &start, &search, &cfg.rules)?;
     if fixed.is_empty() && second.steps.is_empty() {
@@ -116,7 +121,11 @@ pub(super) fn load_stage(
                 first.stopped_on = Some(s);
             }
         }
-        return Ok((layout, problem, first, declared));
+        return Ok(Selected {
+            problem,
+            selection: first,
+            declared,
+        });
     }
     // A first-stage effect may have stood in for the load-dependent one (a Coulomb term for
     // the mean of load-dependent friction): each must pass the same test again against the
@@ -146,10 +155,9 @@ pub(super) fn load_stage(
     }
     let mut collinear = first.collinear;
     collinear.extend(second.collinear);
-    Ok((
-        l2,
-        p2,
-        Selection {
+    Ok(Selected {
+        problem: p2,
+        selection: Selection {
             steps,
             terms,
             stopped_on: second.stopped_on,
@@ -157,5 +165,5 @@ pub(super) fn load_stage(
             dropped: dropped.iter().map(Term::label).collect(),
         },
         declared,
-    ))
+    })
 }

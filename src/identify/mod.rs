@@ -61,15 +61,18 @@ mod scan;
 mod select;
 pub mod synth;
 
-pub use evaluate::{raw_sums, Errors, Judged, RawSums};
+pub use evaluate::{raw_sums, Errors, Judged, ModelResult, RawSums};
 pub use layout::Layout;
 pub use load_stage::LoadModel;
-pub use outcome::{Estimated, FileInfo, ModelResult, Outcome, StepRow};
+pub use outcome::{Estimated, FileInfo, Outcome, StepRow};
 pub use predict::{BeforeAfter, Predictions, Series};
 pub use prepare::{PrepCache, Prepared, Smoothing};
 pub use problem::Problem;
 pub use regress::KEEP_RATE_PER_CUTOFF;
-pub use scan::{choose_cutoff, scan_pieces, CutoffTrial, FilterChoice, SCAN_PIECES, SCAN_SAMPLES};
+pub use scan::{
+    choose_cutoff, scan_pieces, scan_sampling, CutoffTrial, FilterChoice, ScanSampling,
+    SCAN_PIECES, SCAN_SAMPLES,
+};
 pub use select::{select, Evidence, Rules, Selection, Step};
 
 use crate::arms::ArmSource;
@@ -78,9 +81,7 @@ use crate::effects::{EffectsSpec, Term};
 use crate::log::Log;
 use base::BaseModel;
 use layout::make_layout;
-use load_stage::{load_model, load_stage};
-use predict::{make_series, predictions};
-use problem::with_hint;
+use load_stage::load_stage;
 
 /// Fewest samples per file.
 pub const MIN_SAMPLES: usize = 64;
@@ -170,7 +171,7 @@ impl Default for Config {
 /// load-dependent terms (which the first scan's models lack, see [`crate::effects::Effect::LOADED`]) and the
 /// choice was automatic, the scan is repeated with them in its models, and the identification
 /// with its choice if that differs.
-pub(super) fn scan_and_run(
+fn scan_and_run(
     arm: &ArmSource,
     base: &BaseModel,
     train: &[Log],
@@ -202,6 +203,9 @@ pub(super) fn scan_and_run(
         out.cutoff_scan = scan;
         out.rescanned_with = lm.terms.iter().map(Term::label).collect();
     }
+    if !out.cutoff_scan.is_empty() {
+        out.scan_sampling = scan_sampling(train);
+    }
     Ok(out)
 }
 
@@ -229,7 +233,7 @@ pub fn run(
     )
 }
 
-pub(super) fn check_dof(t: &Log, base: &BaseModel) -> Result<(), IdentifyError> {
+fn check_dof(t: &Log, base: &BaseModel) -> Result<(), IdentifyError> {
     if t.dof() != base.dof() {
         return Err(IdentifyError::Dof {
             file: t.source.clone(),
@@ -240,7 +244,8 @@ pub(super) fn check_dof(t: &Log, base: &BaseModel) -> Result<(), IdentifyError> 
     Ok(())
 }
 
-/// [`run`] on files already prepared (so studies can rotate files without redoing derivatives).
+/// [`run`] on files already prepared (so studies can rotate files without redoing derivatives):
+/// the stages 2–7 in order.
 pub fn run_prepared(
     arm: &str,
     base: &BaseModel,
@@ -249,192 +254,11 @@ pub fn run_prepared(
     val: Option<&Prepared>,
     cfg: &Config,
 ) -> Result<Outcome, IdentifyError> {
-    let n = base.dof();
     let (layout, declared, searched, merged) = make_layout(base, table, train, cfg);
-    let names = layout.base_names.clone();
-    let scales = layout.scales.clone();
-    let problem = Problem::build(base, layout.clone(), train, cfg.blocks);
-
-    // Declared (rigid) model first: its rank is the excitation check.
-    let rigid = problem.subset(&[]);
-    problem.weights(&rigid).map_err(|e| with_hint(e, train))?;
-    let selection = match &cfg.effects {
-        EffectsSpec::Auto => select(&problem, &declared, &searched, &cfg.rules)?,
-        EffectsSpec::Fixed(_) => Selection {
-            steps: Vec::new(),
-            terms: declared.clone(),
-            stopped_on: None,
-            collinear: Vec::new(),
-            dropped: Vec::new(),
-        },
-    };
-    let (layout, problem, selection, declared) =
-        load_stage(base, train, cfg, layout, problem, selection, declared)?;
-
-    // The models reported: rigid, the final one, and rigid → +declared → +each added effect.
-    let mut added_steps: Vec<Vec<Term>> = Vec::new();
-    if !declared.is_empty() {
-        added_steps.push(declared.clone());
-    }
-    for s in &selection.steps {
-        added_steps.push(vec![s.added]);
-    }
-    let mut model_terms: Vec<Vec<Term>> = vec![Vec::new(), selection.terms.clone()];
-    let mut acc_terms: Vec<Term> = Vec::new();
-    for add in &added_steps {
-        acc_terms.extend(add.iter().copied());
-        model_terms.push(acc_terms.clone());
-    }
-    struct Fitted {
-        subset: Vec<usize>,
-        w: Vec<f64>,
-        fit: ls::Fit,
-        loo: Vec<Vec<f64>>,
-    }
-    let fitted: Vec<Fitted> = model_terms
-        .iter()
-        .map(|terms| -> Result<Fitted, IdentifyError> {
-            let subset = problem.subset(terms);
-            let w = problem.weights(&subset).map_err(|e| with_hint(e, train))?;
-            let fit = problem.fit(&subset, &w).map_err(|e| with_hint(e, train))?;
-            let loo = problem
-                .loo_fits(&subset, &w)
-                .map_err(|e| with_hint(e, train))?;
-            Ok(Fitted {
-                subset,
-                w,
-                fit,
-                loo,
-            })
-        })
-        .collect::<Result<_, _>>()?;
-    let judged: Vec<Judged> = fitted
-        .iter()
-        .map(|f| Judged {
-            subset: &f.subset,
-            x: Some(&f.fit.x),
-            loo: Some(&f.loo),
-        })
-        .collect();
-    let train_sums = raw_sums(base, &layout, train, Some(problem.raw_blocks()), &judged);
-    let val_sums = val.map(|p| raw_sums(base, &layout, std::slice::from_ref(p), None, &judged));
-    let result = |m: usize| ModelResult {
-        terms: model_terms[m].iter().map(Term::label).collect(),
-        train: train_sums.errors(m),
-        validation: val_sums.as_ref().map(|v| v.errors(m)),
-        heldout_rms: train_sums.heldout(m),
-        subset: fitted[m].subset.clone(),
-        x: fitted[m].fit.x.clone(),
-    };
-    let before = result(0);
-    let after = result(1);
-    let (w, fit) = (fitted[1].w.clone(), fitted[1].fit.clone());
-    let mut steps = vec![StepRow {
-        model: "rigid".into(),
-        added: None,
-        train: before.train.clone(),
-        heldout_rms: before.heldout_rms,
-        validation: before.validation.clone(),
-    }];
-    for (i, add) in added_steps.iter().enumerate() {
-        let m = result(2 + i);
-        steps.push(StepRow {
-            model: format!(
-                "rigid + {}",
-                model_terms[2 + i]
-                    .iter()
-                    .map(Term::label)
-                    .collect::<Vec<_>>()
-                    .join(" + ")
-            ),
-            added: Some(add.iter().map(Term::label).collect::<Vec<_>>().join(", ")),
-            train: m.train,
-            heldout_rms: m.heldout_rms,
-            validation: m.validation,
-        });
-    }
-
-    // Jackknife standard deviations over the blocks (the final model's leave-out fits).
-    let loo = &fitted[1].loo;
-    let nb_ = loo.len() as f64;
-    let std: Vec<f64> = (0..after.x.len())
-        .map(|k| {
-            if loo.len() < 2 {
-                return f64::NAN;
-            }
-            let mean = loo.iter().map(|x| x[k]).sum::<f64>() / nb_;
-            ((nb_ - 1.0) / nb_ * loo.iter().map(|x| (x[k] - mean).powi(2)).sum::<f64>()).sqrt()
-        })
-        .collect();
-    let est = |k: usize, name: String, expression: String, unit: Option<String>| Estimated {
-        name,
-        expression,
-        value: after.x[k],
-        std: std[k],
-        rel_std_percent: if after.x[k] != 0.0 {
-            100.0 * std[k] / after.x[k].abs()
-        } else {
-            f64::INFINITY
-        },
-        unit,
-    };
-    let theta: Vec<Estimated> = (0..layout.nb)
-        .map(|k| est(k, names[k].clone(), layout.base_exprs[k].clone(), None))
-        .collect();
-    let effects_est: Vec<(Term, Estimated)> = selection
-        .terms
-        .iter()
-        .enumerate()
-        .map(|(i, t)| {
-            let k = layout.nb + i;
-            (
-                *t,
-                est(
-                    k,
-                    t.label(),
-                    format!("{} on joint {}", t.effect.name(), t.joint + 1),
-                    Some(t.effect.unit().to_string()),
-                ),
-            )
-        })
-        .collect();
-
-    let series = make_series(base, &layout, train, val, &before, &after);
-    let predictions = val
-        .map(|p| predictions(base, &layout, p, &before, &after))
-        .transpose()?;
-    let sigma = w.iter().map(|w| 1.0 / w).collect();
-    let load_model = load_model(&layout, &selection.terms, &fitted[1].subset, &after.x);
-    Ok(Outcome {
-        arm: arm.to_string(),
-        dof: n,
-        base_source: base.source().to_string(),
-        train: train.iter().map(FileInfo::of).collect(),
-        validate: val.map(FileInfo::of),
-        effects_mode: match &cfg.effects {
-            EffectsSpec::Auto => "auto".into(),
-            EffectsSpec::Fixed(t) if t.is_empty() => "none".into(),
-            EffectsSpec::Fixed(t) => t.iter().map(Term::label).collect::<Vec<_>>().join(","),
-        },
-        theta,
-        effects: effects_est,
-        selection,
-        merged: merged.iter().map(|(t, w)| (t.label(), w.clone())).collect(),
-        before,
-        after,
-        steps,
-        cond: fit.cond,
-        cond_scaled: fit.singular.first().copied().unwrap_or(f64::NAN)
-            / fit.singular.last().copied().unwrap_or(f64::NAN),
-        sigma,
-        blocks: problem.blocks(),
-        scales,
-        cutoff_scan: Vec::new(),
-        rescanned_with: Vec::new(),
-        load_model,
-        series,
-        predictions,
-    })
+    let problem = Problem::build(base, layout, train, cfg.blocks);
+    let first = select::first_stage(problem, train, cfg, declared, &searched)?;
+    let selected = load_stage(base, train, cfg, first)?;
+    outcome::assemble(arm, base, train, val, cfg, selected, &merged)
 }
 
 /// Leave-one-file-out study: each file in turn is the validation file, the others the training

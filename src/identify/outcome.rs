@@ -3,15 +3,20 @@
 
 use serde::Serialize;
 
-use super::evaluate::Errors;
-use super::load_stage::LoadModel;
-use super::predict::{Predictions, Series};
+use super::base::BaseModel;
+use super::evaluate::{raw_sums, Errors, Judged, ModelResult};
+use super::layout::{Layout, Merged};
+use super::load_stage::{load_model, LoadModel};
+use super::ls;
+use super::predict::{make_series, predictions, Predictions, Series};
 use super::prepare::{Prepared, Smoothing};
+use super::problem::{with_hint, Problem};
 use super::regress::decimation;
-use super::scan::CutoffTrial;
-use super::select::Selection;
+use super::scan::{CutoffTrial, ScanSampling};
+use super::select::{Selected, Selection};
+use super::{Config, IdentifyError};
 use crate::derivative::DerivativeReport;
-use crate::effects::{Scales, Term};
+use crate::effects::{EffectsSpec, Scales, Term};
 
 /// One identified parameter.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -26,20 +31,6 @@ pub struct Estimated {
     pub rel_std_percent: f64,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub unit: Option<String>,
-}
-
-/// A fitted model and its errors.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct ModelResult {
-    pub terms: Vec<String>,
-    pub train: Errors,
-    pub validation: Option<Errors>,
-    /// Held-out error of leave-one-block-out refits on the (filtered) training data.
-    pub heldout_rms: f64,
-    #[serde(skip)]
-    pub subset: Vec<usize>,
-    #[serde(skip)]
-    pub x: Vec<f64>,
 }
 
 /// Summary of one data file.
@@ -108,6 +99,9 @@ pub struct Outcome {
     pub scales: Vec<Scales>,
     /// Cut-offs tried by the automatic choice and their held-out errors (empty if fixed).
     pub cutoff_scan: Vec<CutoffTrial>,
+    /// How the scan sampled a long training set (`None`: scanned whole, or not scanned).
+    #[serde(skip)]
+    pub scan_sampling: Option<ScanSampling>,
     /// Load-dependent terms the scan was repeated with (found by the first pass).
     pub rescanned_with: Vec<String>,
     /// The final model's load-dependent terms and its torque without them (for a rescan).
@@ -117,4 +111,243 @@ pub struct Outcome {
     pub series: Series,
     #[serde(skip)]
     pub predictions: Option<Predictions>,
+}
+
+/// Stage 7: the outcome of an identification whose effects are selected (`selected`, the
+/// effects structurally merged with the base in `merged`): the reported models fitted and
+/// judged against the measured torque, the final model's estimates, plots and predictions.
+pub(super) fn assemble(
+    arm: &str,
+    base: &BaseModel,
+    train: &[Prepared],
+    val: Option<&Prepared>,
+    cfg: &Config,
+    selected: Selected,
+    merged: &Merged,
+) -> Result<Outcome, IdentifyError> {
+    let Selected {
+        problem,
+        selection,
+        declared,
+    } = selected;
+    let layout = &problem.layout;
+    let models = Models::fit(&problem, train, &declared, &selection)?;
+    let (before, after, steps) = models.judge(base, &problem, train, val);
+    let last = &models.fitted[1];
+    let (theta, effects) = estimates(layout, &selection, &after, &last.loo);
+    let series = make_series(base, layout, train, val, &before, &after);
+    let predictions = val
+        .map(|p| predictions(base, layout, p, &before, &after))
+        .transpose()?;
+    let sigma = last.w.iter().map(|w| 1.0 / w).collect();
+    let load_model = load_model(layout, &selection.terms, &last.subset, &after.x);
+    let fit = &last.fit;
+    Ok(Outcome {
+        arm: arm.to_string(),
+        dof: base.dof(),
+        base_source: base.source().to_string(),
+        train: train.iter().map(FileInfo::of).collect(),
+        validate: val.map(FileInfo::of),
+        effects_mode: match &cfg.effects {
+            EffectsSpec::Auto => "auto".into(),
+            EffectsSpec::Fixed(t) if t.is_empty() => "none".into(),
+            EffectsSpec::Fixed(t) => t.iter().map(Term::label).collect::<Vec<_>>().join(","),
+        },
+        theta,
+        effects,
+        selection,
+        merged: merged.iter().map(|(t, w)| (t.label(), w.clone())).collect(),
+        before,
+        after,
+        steps,
+        cond: fit.cond,
+        cond_scaled: fit.singular.first().copied().unwrap_or(f64::NAN)
+            / fit.singular.last().copied().unwrap_or(f64::NAN),
+        sigma,
+        blocks: problem.blocks(),
+        scales: layout.scales.clone(),
+        cutoff_scan: Vec::new(),
+        scan_sampling: None,
+        rescanned_with: Vec::new(),
+        load_model,
+        series,
+        predictions,
+    })
+}
+
+/// The models reported — rigid, the final one, and rigid → +declared → +each added effect —
+/// each fitted on all training blocks and without each block.
+struct Models {
+    /// What each row of the step table adds (the declared terms first, if any).
+    added: Vec<Vec<Term>>,
+    /// Each model's terms: rigid, final, then one per step.
+    terms: Vec<Vec<Term>>,
+    fitted: Vec<Fitted>,
+}
+
+/// One model's columns, weights, fit and leave-one-block-out parameters.
+struct Fitted {
+    subset: Vec<usize>,
+    w: Vec<f64>,
+    fit: ls::Fit,
+    loo: Vec<Vec<f64>>,
+}
+
+impl Models {
+    fn fit(
+        problem: &Problem,
+        train: &[Prepared],
+        declared: &[Term],
+        selection: &Selection,
+    ) -> Result<Models, IdentifyError> {
+        let mut added: Vec<Vec<Term>> = Vec::new();
+        if !declared.is_empty() {
+            added.push(declared.to_vec());
+        }
+        for s in &selection.steps {
+            added.push(vec![s.added]);
+        }
+        let mut terms: Vec<Vec<Term>> = vec![Vec::new(), selection.terms.clone()];
+        let mut acc_terms: Vec<Term> = Vec::new();
+        for add in &added {
+            acc_terms.extend(add.iter().copied());
+            terms.push(acc_terms.clone());
+        }
+        let fitted: Vec<Fitted> = terms
+            .iter()
+            .map(|terms| -> Result<Fitted, IdentifyError> {
+                let subset = problem.subset(terms);
+                let w = problem.weights(&subset).map_err(|e| with_hint(e, train))?;
+                let fit = problem.fit(&subset, &w).map_err(|e| with_hint(e, train))?;
+                let loo = problem
+                    .loo_fits(&subset, &w)
+                    .map_err(|e| with_hint(e, train))?;
+                Ok(Fitted {
+                    subset,
+                    w,
+                    fit,
+                    loo,
+                })
+            })
+            .collect::<Result<_, _>>()?;
+        Ok(Models {
+            added,
+            terms,
+            fitted,
+        })
+    }
+
+    /// Every model judged against the measured torque: the rigid (`before`) and the final
+    /// (`after`) model and the step table.
+    fn judge(
+        &self,
+        base: &BaseModel,
+        problem: &Problem,
+        train: &[Prepared],
+        val: Option<&Prepared>,
+    ) -> (ModelResult, ModelResult, Vec<StepRow>) {
+        let layout = &problem.layout;
+        let judged: Vec<Judged> = self
+            .fitted
+            .iter()
+            .map(|f| Judged {
+                subset: &f.subset,
+                x: Some(&f.fit.x),
+                loo: Some(&f.loo),
+            })
+            .collect();
+        let train_sums = raw_sums(base, layout, train, Some(problem.raw_blocks()), &judged);
+        let val_sums = val.map(|p| raw_sums(base, layout, std::slice::from_ref(p), None, &judged));
+        let result = |m: usize| ModelResult {
+            terms: self.terms[m].iter().map(Term::label).collect(),
+            train: train_sums.errors(m),
+            validation: val_sums.as_ref().map(|v| v.errors(m)),
+            heldout_rms: train_sums.heldout(m),
+            subset: self.fitted[m].subset.clone(),
+            x: self.fitted[m].fit.x.clone(),
+        };
+        let before = result(0);
+        let after = result(1);
+        let mut steps = vec![StepRow {
+            model: "rigid".into(),
+            added: None,
+            train: before.train.clone(),
+            heldout_rms: before.heldout_rms,
+            validation: before.validation.clone(),
+        }];
+        for (i, add) in self.added.iter().enumerate() {
+            let m = result(2 + i);
+            steps.push(StepRow {
+                model: format!(
+                    "rigid + {}",
+                    self.terms[2 + i]
+                        .iter()
+                        .map(Term::label)
+                        .collect::<Vec<_>>()
+                        .join(" + ")
+                ),
+                added: Some(add.iter().map(Term::label).collect::<Vec<_>>().join(", ")),
+                train: m.train,
+                heldout_rms: m.heldout_rms,
+                validation: m.validation,
+            });
+        }
+        (before, after, steps)
+    }
+}
+
+/// The final model's (`after`) parameters, base then effects, with standard deviations from a
+/// jackknife over the blocks (its leave-one-block-out fits `loo`).
+fn estimates(
+    layout: &Layout,
+    selection: &Selection,
+    after: &ModelResult,
+    loo: &[Vec<f64>],
+) -> (Vec<Estimated>, Vec<(Term, Estimated)>) {
+    let nb_ = loo.len() as f64;
+    let std: Vec<f64> = (0..after.x.len())
+        .map(|k| {
+            if loo.len() < 2 {
+                return f64::NAN;
+            }
+            let mean = loo.iter().map(|x| x[k]).sum::<f64>() / nb_;
+            ((nb_ - 1.0) / nb_ * loo.iter().map(|x| (x[k] - mean).powi(2)).sum::<f64>()).sqrt()
+        })
+        .collect();
+    let est = |k: usize, name: String, expression: String, unit: Option<String>| Estimated {
+        name,
+        expression,
+        value: after.x[k],
+        std: std[k],
+        rel_std_percent: if after.x[k] != 0.0 {
+            100.0 * std[k] / after.x[k].abs()
+        } else {
+            f64::INFINITY
+        },
+        unit,
+    };
+    let theta: Vec<Estimated> = (0..layout.nb)
+        .map(|k| {
+            let name = layout.base_names[k].clone();
+            est(k, name, layout.base_exprs[k].clone(), None)
+        })
+        .collect();
+    let effects: Vec<(Term, Estimated)> = selection
+        .terms
+        .iter()
+        .enumerate()
+        .map(|(i, t)| {
+            let k = layout.nb + i;
+            (
+                *t,
+                est(
+                    k,
+                    t.label(),
+                    format!("{} on joint {}", t.effect.name(), t.joint + 1),
+                    Some(t.effect.unit().to_string()),
+                ),
+            )
+        })
+        .collect();
+    (theta, effects)
 }

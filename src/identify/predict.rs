@@ -5,9 +5,9 @@
 use std::sync::Arc;
 
 use super::base::BaseModel;
+use super::evaluate::ModelResult;
 use super::layout::Layout;
 use super::ls;
-use super::outcome::ModelResult;
 use super::prepare::{raw_cores, raw_in_core, Prepared};
 use super::rows::Rows;
 use super::IdentifyError;

@@ -21,6 +21,24 @@ pub const SCAN_SAMPLES: usize = 100_000;
 /// Pieces per file of the cut-off scan of a long training set.
 pub const SCAN_PIECES: usize = 4;
 
+/// How the cut-off scan samples a long training set.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ScanSampling {
+    /// Evenly spaced pieces of each training file.
+    pub pieces_per_file: usize,
+    /// Samples in all.
+    pub samples: usize,
+}
+
+/// How the scan samples `train`: `None` when it fits the files whole (see [`scan_pieces`]).
+pub fn scan_sampling(train: &[Log]) -> Option<ScanSampling> {
+    let total: usize = train.iter().map(|t| t.len()).sum();
+    (total > SCAN_SAMPLES).then_some(ScanSampling {
+        pieces_per_file: SCAN_PIECES,
+        samples: SCAN_SAMPLES,
+    })
+}
+
 /// The files the cut-off scan fits: `train` itself up to [`SCAN_SAMPLES`] samples in all, else
 /// [`SCAN_PIECES`] evenly spaced pieces of each file, of lengths proportional to the files'
 /// (each piece filtered on its own, as a file of its own).

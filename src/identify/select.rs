@@ -16,9 +16,10 @@
 use serde::Serialize;
 
 use super::ls::t_quantile;
-use super::problem::Problem;
-use super::RankError;
-use crate::effects::Term;
+use super::prepare::Prepared;
+use super::problem::{with_hint, Problem};
+use super::{Config, IdentifyError, RankError};
+use crate::effects::{EffectsSpec, Term};
 
 /// Thresholds of the selection loop (documented in the module docs; not tuned per dataset).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -90,6 +91,43 @@ pub struct Selection {
     pub dropped: Vec<String>,
 }
 
+/// What effect selection hands on: the problem (and its layout) the final model's columns are
+/// in, the selection, and the declared terms.
+pub(super) struct Selected {
+    pub(super) problem: Problem,
+    pub(super) selection: Selection,
+    pub(super) declared: Vec<Term>,
+}
+
+/// The first stage on `problem`: the declared (rigid) model's rank is the excitation check,
+/// then `searched` is searched on top of `declared` (with `--effects auto`; with a fixed list
+/// the declared terms are the model).
+pub(super) fn first_stage(
+    problem: Problem,
+    train: &[Prepared],
+    cfg: &Config,
+    declared: Vec<Term>,
+    searched: &[Term],
+) -> Result<Selected, IdentifyError> {
+    let rigid = problem.subset(&[]);
+    problem.weights(&rigid).map_err(|e| with_hint(e, train))?;
+    let selection = match &cfg.effects {
+        EffectsSpec::Auto => select(&problem, &declared, searched, &cfg.rules)?,
+        EffectsSpec::Fixed(_) => Selection {
+            steps: Vec::new(),
+            terms: declared.clone(),
+            stopped_on: None,
+            collinear: Vec::new(),
+            dropped: Vec::new(),
+        },
+    };
+    Ok(Selected {
+        problem,
+        selection,
+        declared,
+    })
+}
+
 /// The residual → effect loop (see the module docs). `declared` terms are always in the model;
 /// `candidates` are searched.
 pub fn select(
@@ -121,62 +159,11 @@ pub fn select(
         let mut best: Option<Evidence> = None;
         let mut best_pass: Option<Evidence> = None;
         for &c in &open {
-            let mut with = terms.clone();
-            with.push(c);
-            let sub2 = p.subset(&with);
-            let Ok(new) = p.cv_sse(&sub2, &w) else {
+            let Some(ev) = evidence(p, &terms, &subset, &w, &cur, c, t_crit) else {
                 if !collinear.contains(&c.label()) {
                     collinear.push(c.label());
                 }
                 continue;
-            };
-            let d: Vec<f64> = (0..blocks)
-                .map(|b| cur[b].iter().sum::<f64>() - new[b].iter().sum::<f64>())
-                .collect();
-            // Test on per-block log ratios of the candidate joint's held-out error: scale-free, so
-            // blocks where the effect's signature is weak (few velocity reversals, small
-            // excursions) do not drown the consistent improvement elsewhere. The joint's own
-            // error, not the sum over joints: an effect acts in one joint's equation, and the
-            // other joints' residuals only dilute its signature (a Stribeck term active near
-            // velocity reversals was found in 6 of 10 synthetic runs on the total, 10 of 10 on the
-            // joint's error, with no false positive in 66 clean runs either way: the ignored study
-            // `selection_power_and_false_positives` in tests/it/identify.rs).
-            let lr: Vec<f64> = (0..blocks)
-                .map(|b| {
-                    let (c, n) = (cur[b][c.joint], new[b][c.joint]);
-                    if c > 0.0 && n > 0.0 {
-                        (c / n).ln()
-                    } else {
-                        0.0
-                    }
-                })
-                .collect();
-            let mean = lr.iter().sum::<f64>() / blocks as f64;
-            let var = lr.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (blocks - 1) as f64;
-            let t_stat = if var > 0.0 {
-                mean / (var / blocks as f64).sqrt()
-            } else if mean > 0.0 {
-                f64::INFINITY
-            } else {
-                0.0
-            };
-            let joint_sse: f64 = cur.iter().map(|b| b[c.joint]).sum();
-            let heldout_gain = if joint_sse > 0.0 {
-                d.iter().sum::<f64>() / joint_sse
-            } else {
-                0.0
-            };
-            let share = d.iter().sum::<f64>() / (w[c.joint] * w[c.joint] * p.target_ss(c.joint));
-            let partial_corr = p.partial_corr(&subset, c).unwrap_or(0.0);
-            let ev = Evidence {
-                term: c,
-                label: c.label(),
-                heldout_gain,
-                torque_share: share,
-                t_stat,
-                t_crit,
-                partial_corr,
-                accepted: false,
             };
             let passes = ev.t_stat > ev.t_crit
                 && ev.heldout_gain >= rules.min_gain
@@ -218,5 +205,72 @@ pub fn select(
         stopped_on,
         collinear,
         dropped: Vec::new(),
+    })
+}
+
+/// The evidence for adding candidate `c` to the model `terms` (columns `subset`, weights `w`,
+/// held-out weighted SSE `cur`); `None` when its column is collinear with the model's in this
+/// data.
+fn evidence(
+    p: &Problem,
+    terms: &[Term],
+    subset: &[usize],
+    w: &[f64],
+    cur: &[Vec<f64>],
+    c: Term,
+    t_crit: f64,
+) -> Option<Evidence> {
+    let blocks = p.blocks();
+    let mut with = terms.to_vec();
+    with.push(c);
+    let sub2 = p.subset(&with);
+    let new = p.cv_sse(&sub2, w).ok()?;
+    let d: Vec<f64> = (0..blocks)
+        .map(|b| cur[b].iter().sum::<f64>() - new[b].iter().sum::<f64>())
+        .collect();
+    // Test on per-block log ratios of the candidate joint's held-out error: scale-free, so
+    // blocks where the effect's signature is weak (few velocity reversals, small
+    // excursions) do not drown the consistent improvement elsewhere. The joint's own
+    // error, not the sum over joints: an effect acts in one joint's equation, and the
+    // other joints' residuals only dilute its signature (a Stribeck term active near
+    // velocity reversals was found in 6 of 10 synthetic runs on the total, 10 of 10 on the
+    // joint's error, with no false positive in 66 clean runs either way: the ignored study
+    // `selection_power_and_false_positives` in tests/it/identify.rs).
+    let lr: Vec<f64> = (0..blocks)
+        .map(|b| {
+            let (c, n) = (cur[b][c.joint], new[b][c.joint]);
+            if c > 0.0 && n > 0.0 {
+                (c / n).ln()
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    let mean = lr.iter().sum::<f64>() / blocks as f64;
+    let var = lr.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (blocks - 1) as f64;
+    let t_stat = if var > 0.0 {
+        mean / (var / blocks as f64).sqrt()
+    } else if mean > 0.0 {
+        f64::INFINITY
+    } else {
+        0.0
+    };
+    let joint_sse: f64 = cur.iter().map(|b| b[c.joint]).sum();
+    let heldout_gain = if joint_sse > 0.0 {
+        d.iter().sum::<f64>() / joint_sse
+    } else {
+        0.0
+    };
+    let share = d.iter().sum::<f64>() / (w[c.joint] * w[c.joint] * p.target_ss(c.joint));
+    let partial_corr = p.partial_corr(subset, c).unwrap_or(0.0);
+    Some(Evidence {
+        term: c,
+        label: c.label(),
+        heldout_gain,
+        torque_share: share,
+        t_stat,
+        t_crit,
+        partial_corr,
+        accepted: false,
     })
 }
