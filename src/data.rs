@@ -580,6 +580,93 @@ pub fn write_row(w: &mut dyn Write, values: &[f64]) -> std::io::Result<()> {
     w.write_all(b"\n")
 }
 
+/// A CSV reader error as a located data error (`last_line`: the last line read, for errors
+/// without a position). With `gzip`, read errors come from the decoder: the stream is corrupt.
+fn csv_error(e: csv::Error, file: &str, last_line: usize, gzip: bool) -> DataError {
+    let line = e
+        .position()
+        .map(|p| p.line() as usize)
+        .or(Some(last_line + 1));
+    let loc = Location {
+        file: file.to_string(),
+        line,
+        field: None,
+    };
+    let kind = match e.into_kind() {
+        csv::ErrorKind::Io(io) if gzip => {
+            return DataError {
+                loc: Location::file(file),
+                kind: Box::new(DataErrorKind::Gzip(io)),
+            }
+        }
+        csv::ErrorKind::Io(io) => DataErrorKind::Io(io),
+        csv::ErrorKind::Utf8 { err, .. } => DataErrorKind::NotANumber {
+            cell: format!("invalid UTF-8 ({err})"),
+        },
+        other => DataErrorKind::Io(std::io::Error::new(
+            std::io::ErrorKind::InvalidData,
+            format!("{other:?}"),
+        )),
+    };
+    DataError {
+        loc,
+        kind: Box::new(kind),
+    }
+}
+
+/// One cell as a finite number, or what is wrong with it.
+fn parse_cell(raw: &[u8]) -> Result<f64, DataErrorKind> {
+    let text = std::str::from_utf8(raw).map_err(|_| DataErrorKind::NotANumber {
+        cell: String::from_utf8_lossy(raw).into_owned(),
+    })?;
+    let text = text.trim();
+    if text.is_empty() {
+        return Err(DataErrorKind::EmptyCell);
+    }
+    match text.parse::<f64>() {
+        Ok(v) if v.is_finite() => Ok(v),
+        Ok(_) => Err(DataErrorKind::NonFinite {
+            cell: text.to_string(),
+        }),
+        Err(_) => Err(DataErrorKind::NotANumber {
+            cell: text.to_string(),
+        }),
+    }
+}
+
+/// The header record: the file's columns checked against the arm (`want_dof`), and its line.
+fn read_header<R: Read>(
+    rdr: &mut csv::Reader<R>,
+    record: &mut csv::ByteRecord,
+    file: &str,
+    want_dof: Option<usize>,
+    gzip: bool,
+) -> Result<(Columns, usize), DataError> {
+    let got = rdr
+        .read_byte_record(record)
+        .map_err(|e| csv_error(e, file, 0, gzip))?;
+    if !got {
+        let expected = want_dof.map_or_else(|| "t, q1..qn, ...".to_string(), expected_columns);
+        return Err(DataError {
+            loc: Location::file(file),
+            kind: Box::new(DataErrorKind::Empty { expected }),
+        });
+    }
+    let header_line = record.position().map_or(1, |p| p.line() as usize);
+    let names: Vec<String> = record
+        .iter()
+        .map(|f| {
+            String::from_utf8_lossy(f)
+                .trim()
+                .trim_start_matches('\u{feff}')
+                .trim()
+                .to_ascii_lowercase()
+        })
+        .collect();
+    let cols = Columns::from_header(names, want_dof, file, header_line)?;
+    Ok((cols, header_line))
+}
+
 fn parse<R: Read>(
     reader: R,
     file: &str,
@@ -592,69 +679,13 @@ fn parse<R: Read>(
         .flexible(true)
         .comment(Some(b'#'))
         .from_reader(reader);
-    let mut last_line = 0;
-    let read_err = |e: csv::Error, last_line: usize| {
-        let line = e
-            .position()
-            .map(|p| p.line() as usize)
-            .or(Some(last_line + 1));
-        let loc = Location {
-            file: file.to_string(),
-            line,
-            field: None,
-        };
-        let kind = match e.into_kind() {
-            // The decoder's errors arrive as read errors: the stream is corrupt.
-            csv::ErrorKind::Io(io) if gzip => {
-                return DataError {
-                    loc: Location::file(file),
-                    kind: Box::new(DataErrorKind::Gzip(io)),
-                }
-            }
-            csv::ErrorKind::Io(io) => DataErrorKind::Io(io),
-            csv::ErrorKind::Utf8 { err, .. } => DataErrorKind::NotANumber {
-                cell: format!("invalid UTF-8 ({err})"),
-            },
-            other => DataErrorKind::Io(std::io::Error::new(
-                std::io::ErrorKind::InvalidData,
-                format!("{other:?}"),
-            )),
-        };
-        DataError {
-            loc,
-            kind: Box::new(kind),
-        }
-    };
-
     let mut record = csv::ByteRecord::new();
-    let got = rdr
-        .read_byte_record(&mut record)
-        .map_err(|e| read_err(e, last_line))?;
-    if !got {
-        let expected = want_dof.map_or_else(|| "t, q1..qn, ...".to_string(), expected_columns);
-        return Err(DataError {
-            loc: Location::file(file),
-            kind: Box::new(DataErrorKind::Empty { expected }),
-        });
-    }
-    let header_line = record.position().map_or(1, |p| p.line() as usize);
-    last_line = header_line;
-    let names: Vec<String> = record
-        .iter()
-        .map(|f| {
-            String::from_utf8_lossy(f)
-                .trim()
-                .trim_start_matches('\u{feff}')
-                .trim()
-                .to_ascii_lowercase()
-        })
-        .collect();
-    let cols = Columns::from_header(names, want_dof, file, header_line)?;
-    let dof = cols.dof;
+    let (cols, header_line) = read_header(&mut rdr, &mut record, file, want_dof, gzip)?;
+    let mut last_line = header_line;
     let ncols = cols.names.len();
 
     let layout = RowLayout {
-        dof,
+        dof: cols.dof,
         dq: cols.blocks[Block::Dq as usize].is_some(),
         ddq: cols.blocks[Block::Ddq as usize].is_some(),
         tau: cols.blocks[Block::Tau as usize].is_some(),
@@ -670,7 +701,7 @@ fn parse<R: Read>(
         match rdr.read_byte_record(&mut record) {
             Ok(true) => {}
             Ok(false) => break,
-            Err(e) => return Err(read_err(e, last_line)),
+            Err(e) => return Err(csv_error(e, file, last_line, gzip)),
         }
         let line = record
             .position()
@@ -697,36 +728,7 @@ fn parse<R: Read>(
                 }),
             });
         }
-        let cell = |col: usize| -> Result<f64, DataError> {
-            let raw = &record[col];
-            let text = std::str::from_utf8(raw).map_err(|_| {
-                at(
-                    col,
-                    DataErrorKind::NotANumber {
-                        cell: String::from_utf8_lossy(raw).into_owned(),
-                    },
-                )
-            })?;
-            let text = text.trim();
-            if text.is_empty() {
-                return Err(at(col, DataErrorKind::EmptyCell));
-            }
-            match text.parse::<f64>() {
-                Ok(v) if v.is_finite() => Ok(v),
-                Ok(_) => Err(at(
-                    col,
-                    DataErrorKind::NonFinite {
-                        cell: text.to_string(),
-                    },
-                )),
-                Err(_) => Err(at(
-                    col,
-                    DataErrorKind::NotANumber {
-                        cell: text.to_string(),
-                    },
-                )),
-            }
-        };
+        let cell = |col: usize| parse_cell(&record[col]).map_err(|kind| at(col, kind));
         let tk = cell(cols.t)?;
         if rows > 0 && tk <= prev {
             return Err(at(
