@@ -17,8 +17,8 @@
 //! assert_eq!(sig(-4.0, 0.5), -2.0);
 //! ```
 
+use crate::cholesky::cholesky;
 use crate::model::Model;
-use crate::sim::cholesky;
 
 /// A joint-torque feedback law.
 pub trait Controller {

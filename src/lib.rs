@@ -10,6 +10,7 @@
 
 pub mod arms;
 pub mod bench;
+pub mod cholesky;
 pub mod cli;
 pub mod control;
 pub mod data;
