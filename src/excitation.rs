@@ -319,6 +319,52 @@ pub struct LogisticEval {
     pub cost: f64,
 }
 
+/// End-effector height of a planar 2-link arm above its base, `geometry = [a1, a2]` (a
+/// [`HeightFn`] for the "above the ground" constraint).
+pub fn planar_height(q: &[f64], geometry: &[f64]) -> f64 {
+    geometry[0] * q[0].sin() + geometry[1] * (q[0] + q[1]).sin()
+}
+
+/// `a1` of a generated arm from its D-H table (joint 2's `a`; 1 when there is none).
+pub fn link1_length(model: &dyn Model) -> f64 {
+    crate::dh::DhTable::from_str(model.arm_toml(), model.name())
+        .ok()
+        .and_then(|t| t.joints.get(1).map(|j| j.a))
+        .unwrap_or(1.0)
+}
+
+/// Settings of the paper's Logistic design on a planar 2-DOF arm (defaults: the paper's; the
+/// reproduction's `PaperConfig` carries the same fields).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LogisticSettings {
+    pub limits: Limits,
+    /// Grid the periods are rounded up to, s.
+    pub period_grid: f64,
+    /// Eq. 11 tolerance on `|q̇|`, `|q̈|` at start, end and splice points.
+    pub rest_tol: f64,
+    /// GA box: `A`, `w` and `δ` (samples).
+    pub a_range: (f64, f64),
+    pub w_range: (f64, f64),
+    pub delta_range: (f64, f64),
+    /// Length of link 2 for the "above the ground" constraint (the D-H table has no tool frame), m.
+    pub link2_length: f64,
+}
+
+impl LogisticSettings {
+    /// The paper's values.
+    pub fn paper() -> Self {
+        Self {
+            limits: Limits::paper(),
+            period_grid: 0.04,
+            rest_tol: 1e-4,
+            a_range: (0.05, std::f64::consts::PI),
+            w_range: (0.05, 3.0),
+            delta_range: (1.0, 1500.0),
+            link2_length: 1.0,
+        }
+    }
+}
+
 /// The paper's excitation problem (eq. 17) for a step plan on any arm.
 pub struct LogisticProblem<'a> {
     pub model: &'a dyn Model,
@@ -341,6 +387,28 @@ pub struct LogisticProblem<'a> {
     pub a_range: (f64, f64),
     pub w_range: (f64, f64),
     pub delta_range: (f64, f64),
+}
+
+impl<'a> LogisticProblem<'a> {
+    /// The paper's step-by-step problem ([`StepPlan::paper`]) on a planar 2-DOF arm resting at
+    /// `q = 0`, with the "above the ground" constraint, sampled every `ts` s.
+    pub fn planar(model: &'a dyn Model, s: &LogisticSettings, ts: f64) -> Self {
+        LogisticProblem {
+            model,
+            steps: StepPlan::paper(),
+            start: vec![0.0; 2],
+            limits: s.limits,
+            height: Some(planar_height),
+            geometry: vec![link1_length(model), s.link2_length],
+            ts,
+            grid: s.period_grid,
+            rest_tol: s.rest_tol,
+            penalty: 1000.0,
+            a_range: s.a_range,
+            w_range: s.w_range,
+            delta_range: s.delta_range,
+        }
+    }
 }
 
 impl LogisticProblem<'_> {

@@ -22,6 +22,7 @@ pub mod excitation;
 pub mod identify;
 pub mod io;
 pub mod log;
+pub mod measurement;
 pub mod model;
 pub mod pack;
 pub mod paper;

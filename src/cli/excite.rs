@@ -14,8 +14,9 @@ use serde_json::json;
 
 use super::{write_output, InputError};
 use crate::arms::{resolve, ArmSource};
-use crate::excitation::{minimize, FourierProblem, GaConfig, Limits};
-use crate::paper::{logistic_problem, PaperConfig};
+use crate::excitation::{
+    minimize, FourierProblem, GaConfig, Limits, LogisticProblem, LogisticSettings,
+};
 use crate::trajectory::logistic::Logistic;
 use crate::trajectory::TrajectorySpec;
 
@@ -84,11 +85,8 @@ pub fn run(args: &Args) -> Result<()> {
                 ))
                 .into());
             }
-            let cfg = PaperConfig {
-                ga,
-                ..PaperConfig::default()
-            };
-            let problem = logistic_problem(model, &cfg, cfg.ts);
+            // the paper's design, sampled at the paper's 100 Hz identification log
+            let problem = LogisticProblem::planar(model, &LogisticSettings::paper(), 0.01);
             let r = minimize(&ga, &problem.bounds(), |x| problem.cost(x), Some(&pb));
             let design = problem
                 .design(&r.best)

@@ -215,7 +215,7 @@ pub fn run(args: &Args) -> Result<()> {
             .collect()
     });
     let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(args.seed);
-    crate::identify::synth::add_measurement_noise(
+    crate::measurement::add_measurement_noise(
         n,
         &mut log.q,
         &mut log.tau,

@@ -22,6 +22,7 @@ use rand_chacha::ChaCha8Rng;
 use crate::data::Trajectory;
 use crate::dh::{DhTable, JointKind};
 use crate::effects::{Effect, Term};
+use crate::measurement::add_measurement_noise;
 use crate::params::sign;
 use crate::reference::RefModel;
 
@@ -174,39 +175,6 @@ impl Fourier {
             ddq += -a * wl * s + b * wl * c;
         }
         (q, dq, ddq)
-    }
-}
-
-/// Gaussian samples (Box–Muller).
-fn gauss(rng: &mut ChaCha8Rng) -> f64 {
-    let u1: f64 = rng.gen_range(f64::EPSILON..1.0);
-    let u2: f64 = rng.gen_range(0.0..1.0);
-    (-2.0 * u1.ln()).sqrt() * (2.0 * PI * u2).cos()
-}
-
-/// Measurement noise on a row-major log of `n` joints (`q[k·n + j]`): white Gaussian torque noise
-/// of `tau_noise` × each joint's RMS torque, then positions rounded to `resolution[j]` (an
-/// encoder's step, rad or m). Shared by [`generate`] and `dynid simulate`.
-pub fn add_measurement_noise(
-    n: usize,
-    q: &mut [f64],
-    tau: &mut [f64],
-    tau_noise: f64,
-    resolution: Option<&[f64]>,
-    rng: &mut ChaCha8Rng,
-) {
-    let len = tau.len() / n.max(1);
-    for j in 0..n {
-        let rms =
-            ((0..len).map(|k| tau[k * n + j].powi(2)).sum::<f64>() / len.max(1) as f64).sqrt();
-        for k in 0..len {
-            tau[k * n + j] += tau_noise * rms * gauss(rng);
-        }
-    }
-    if let Some(res) = resolution {
-        for (i, v) in q.iter_mut().enumerate() {
-            *v = (*v / res[i % n]).round() * res[i % n];
-        }
     }
 }
 

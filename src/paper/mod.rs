@@ -28,7 +28,8 @@ use serde::Serialize;
 
 use crate::control::{Ctc, ModelBased, Pd, Rhftc, RhftcGains, Usage};
 use crate::excitation::{
-    minimize, FourierProblem, GaConfig, Limits, LogisticDesign, LogisticProblem, Margins, StepPlan,
+    link1_length, minimize, planar_height, FourierProblem, GaConfig, Limits, LogisticDesign,
+    LogisticProblem, LogisticSettings, Margins,
 };
 use crate::model::Model;
 use crate::signal::{central_uniform, Butterworth};
@@ -100,23 +101,24 @@ pub struct PaperConfig {
 
 impl Default for PaperConfig {
     fn default() -> Self {
+        let logistic = LogisticSettings::paper();
         Self {
             theta_true: vec![2.0, 2.0, 0.0, 1.0, 1.0, 0.0],
             theta0: vec![0.0; 6],
             ga: GaConfig::default(),
-            limits: Limits::paper(),
+            limits: logistic.limits,
             ts: 0.01,
             dt: 1e-3,
-            period_grid: 0.04,
-            rest_tol: 1e-4,
-            a_range: (0.05, PI),
-            w_range: (0.05, 3.0),
-            delta_range: (1.0, 1500.0),
+            period_grid: logistic.period_grid,
+            rest_tol: logistic.rest_tol,
+            a_range: logistic.a_range,
+            w_range: logistic.w_range,
+            delta_range: logistic.delta_range,
             iterations: 6,
             rhftc: RhftcGains::paper(),
             fallback_kp: vec![2000.0, 1000.0],
             fallback_kd: vec![200.0, 60.0],
-            link2_length: 1.0,
+            link2_length: logistic.link2_length,
             fourier_harmonics: 5,
             fourier_wf: 2.0 * PI / 10.0,
             fourier_periods: 2,
@@ -309,40 +311,29 @@ fn bar(len: u64, prefix: &str, show: bool) -> ProgressBar {
     pb
 }
 
-/// End-effector height of the planar arm, `geometry = [a1, a2]`.
-fn planar_height(q: &[f64], geometry: &[f64]) -> f64 {
-    geometry[0] * q[0].sin() + geometry[1] * (q[0] + q[1]).sin()
+impl PaperConfig {
+    /// The Logistic design settings of this configuration.
+    pub fn logistic(&self) -> LogisticSettings {
+        LogisticSettings {
+            limits: self.limits,
+            period_grid: self.period_grid,
+            rest_tol: self.rest_tol,
+            a_range: self.a_range,
+            w_range: self.w_range,
+            delta_range: self.delta_range,
+            link2_length: self.link2_length,
+        }
+    }
 }
 
-/// `a1` of the arm from its D-H table (joint 2's `a`).
-fn link1_length(model: &dyn Model) -> f64 {
-    crate::dh::DhTable::from_str(model.arm_toml(), model.name())
-        .ok()
-        .and_then(|t| t.joints.get(1).map(|j| j.a))
-        .unwrap_or(1.0)
-}
-
-/// The paper's excitation problem on `model` with sample time `ts`.
+/// The paper's excitation problem on `model` with sample time `ts`
+/// ([`LogisticProblem::planar`] with the settings of `cfg`).
 pub fn logistic_problem<'a>(
     model: &'a dyn Model,
     cfg: &PaperConfig,
     ts: f64,
 ) -> LogisticProblem<'a> {
-    LogisticProblem {
-        model,
-        steps: StepPlan::paper(),
-        start: vec![0.0; 2],
-        limits: cfg.limits,
-        height: Some(planar_height),
-        geometry: vec![link1_length(model), cfg.link2_length],
-        ts,
-        grid: cfg.period_grid,
-        rest_tol: cfg.rest_tol,
-        penalty: 1000.0,
-        a_range: cfg.a_range,
-        w_range: cfg.w_range,
-        delta_range: cfg.delta_range,
-    }
+    LogisticProblem::planar(model, &cfg.logistic(), ts)
 }
 
 fn check(problem: &LogisticProblem, x: &[f64]) -> Result<DesignCheck, PaperError> {

@@ -17,6 +17,7 @@ use serde::Serialize;
 
 use super::ident::{max_abs_diff, step_ls, Signals};
 use crate::excitation::StepPlan;
+use crate::measurement::quantise_with_zero;
 use crate::model::Model;
 use crate::signal::{central_uniform, Butterworth};
 use crate::trajectory::fourier::fit_periodic;
@@ -112,8 +113,9 @@ impl NoiseStudy {
     }
 }
 
+/// Box–Muller like [`crate::measurement::gauss`], but drawing `u1` from `gen::<f64>()` (so a
+/// different stream): kept so that the published noise study stays reproducible.
 fn gauss(rng: &mut ChaCha8Rng) -> f64 {
-    // Box–Muller
     let u1: f64 = rng.gen::<f64>().max(1e-300);
     let u2: f64 = rng.gen();
     (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
@@ -259,10 +261,7 @@ pub fn run(
                     if let Some(b) = bits {
                         let lsb = std::f64::consts::TAU / (1u64 << b) as f64;
                         let zero: Vec<f64> = (0..dof).map(|_| rng.gen::<f64>() * lsb).collect();
-                        for (k, v) in qs.iter_mut().enumerate() {
-                            let z = zero[k % dof];
-                            *v = ((*v + z) / lsb).round() * lsb - z;
-                        }
+                        quantise_with_zero(&mut qs, lsb, &zero);
                     }
                     let mut ts = d.tau.clone();
                     if pct > 0.0 {
