@@ -836,10 +836,11 @@ impl NormalEquations {
     }
 }
 
-/// A smooth excitation trajectory: per joint a 5-harmonic Fourier series (Swevers et al.),
-/// fundamental 0.1 Hz, with closed-form velocity and acceleration.
+/// The excitation of the streaming identification: per joint a random 5-harmonic Fourier series
+/// (Swevers et al.; not the [`crate::trajectory::fourier::Fourier`] trajectory type), fundamental
+/// 0.1 Hz, with closed-form velocity and acceleration evaluated by an angle-addition recurrence.
 #[derive(Debug, Clone)]
-pub struct FourierTrajectory {
+pub struct BenchExcitation {
     omega: f64,
     q0: Vec<f64>,
     /// Per harmonic `l`, per joint: `(a_l, b_l)` of `q̇ = Σ a_l sin(lωt) + b_l cos(lωt)`.
@@ -847,7 +848,7 @@ pub struct FourierTrajectory {
     b: [Vec<f64>; 5],
 }
 
-impl FourierTrajectory {
+impl BenchExcitation {
     const HARMONICS: usize = 5;
 
     /// Random coefficients (deterministic for a seed) giving joint excursions of about ±1.5 rad.
@@ -864,7 +865,7 @@ impl FourierTrajectory {
                 b[l].push(rng.gen_range(-s..s));
             }
         }
-        FourierTrajectory { omega, q0, a, b }
+        BenchExcitation { omega, q0, a, b }
     }
 
     /// `q, q̇, q̈` at time `t`.
@@ -916,7 +917,7 @@ pub struct IdentifyRun {
 }
 
 /// Streaming identification of a generated log: `samples` samples at 1 kHz along a
-/// [`FourierTrajectory`]; torques from the generated inverse dynamics plus uniform noise of
+/// [`BenchExcitation`]; torques from the generated inverse dynamics plus uniform noise of
 /// ±`noise` N·m; base regressor and [`NormalEquations`] per sample, nothing stored per sample;
 /// one thread.
 ///
@@ -933,7 +934,7 @@ pub fn identify_streaming(
     let p = plausible_params(n, 11);
     let mut theta = vec![0.0; nb];
     arm.base_params(&p, &mut theta);
-    let traj = FourierTrajectory::random(n, 5);
+    let traj = BenchExcitation::random(n, 5);
     let mut rng = SplitMix64(9);
     let t0 = Instant::now();
     let mut ne = NormalEquations::new(nb, NormalEquations::row_starts(arm));
@@ -1094,7 +1095,7 @@ mod tests {
 
     #[test]
     fn fourier_derivatives_are_consistent() {
-        let traj = FourierTrajectory::random(2, 4);
+        let traj = BenchExcitation::random(2, 4);
         let h = 1e-5;
         let (mut q, mut dq, mut ddq) = ([[0.0; 2]; 3], [[0.0; 2]; 3], [[0.0; 2]; 3]);
         for (i, t) in [1.3 - h, 1.3, 1.3 + h].into_iter().enumerate() {

@@ -121,22 +121,24 @@ pub fn random_params(table: &DhTable, seed: u64) -> Vec<f64> {
     p
 }
 
-/// A per-joint Fourier trajectory `qⱼ(t) = q0ⱼ + Σₗ aⱼₗ/(ωl)·sin(ωlt) − bⱼₗ/(ωl)·cos(ωlt)`.
+/// The excitation of the synthetic data: per joint a random-coefficient Fourier series
+/// (not the [`crate::trajectory::fourier::Fourier`] trajectory type),
+/// `qⱼ(t) = q0ⱼ + Σₗ aⱼₗ/(ωl)·sin(ωlt) − bⱼₗ/(ωl)·cos(ωlt)`.
 #[derive(Debug, Clone)]
-pub struct Fourier {
+pub struct SynthExcitation {
     pub w: f64,
     pub q0: Vec<f64>,
     pub a: Vec<Vec<f64>>,
     pub b: Vec<Vec<f64>>,
 }
 
-impl Fourier {
+impl SynthExcitation {
     /// Random coefficients, scaled so each joint's peak excursion is about `range[j]`.
     pub fn random(range: &[f64], base_hz: f64, harmonics: usize, seed: u64) -> Self {
         let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0xf0_u64);
         let w = 2.0 * PI * base_hz;
         let n = range.len();
-        let mut f = Fourier {
+        let mut f = SynthExcitation {
             w,
             q0: vec![0.0; n],
             a: Vec::new(),
@@ -178,6 +180,10 @@ impl Fourier {
     }
 }
 
+/// The former name of [`SynthExcitation`] (still used by `tests/it/identify.rs`).
+#[doc(hidden)]
+pub type Fourier = SynthExcitation;
+
 /// Simulates `spec` (see the module docs).
 pub fn generate(spec: &Spec) -> Trajectory {
     let table = &spec.table;
@@ -195,7 +201,7 @@ pub fn generate(spec: &Spec) -> Trajectory {
             }
         })
         .collect();
-    let traj = Fourier::random(&range, spec.base_hz, spec.harmonics, spec.seed);
+    let traj = SynthExcitation::random(&range, spec.base_hz, spec.harmonics, spec.seed);
     let mut rng = ChaCha8Rng::seed_from_u64(spec.seed ^ 0x0007_015e);
     let len = (spec.duration * spec.rate_hz).round() as usize;
     let dt = 1.0 / spec.rate_hz;
