@@ -2,7 +2,7 @@
 //!
 //! - `kernels/<arm>/<kernel>/{generated,reference}`: every kernel of every arm in
 //!   `dynid::arms::all()` against the hand-written reference on the same inputs. Inputs follow the
-//!   Pinocchio harness (`../shared/anchors/pinocchio`): a pool of 1024 random samples
+//!   Pinocchio harness (`benches/peers/pinocchio/`): a pool of 1024 random samples
 //!   (q ~ U(−π, π), q̇ ~ U(−2, 2), q̈ ~ U(−5, 5)), call i uses sample i mod 1024, inputs through
 //!   `black_box`, one call per iteration through the `Model` trait (`&dyn Model`, as the CLI uses
 //!   it).

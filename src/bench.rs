@@ -2,7 +2,7 @@
 //! the hand-written [`reference`](crate::reference) dynamics on the same inputs, and a streaming
 //! identification of a 1,000,000-sample PUMA 560 log.
 //!
-//! Method (the same as the Pinocchio harness in `../shared/anchors/pinocchio`, so numbers can sit
+//! Method (the same as the Pinocchio harness in `benches/peers/pinocchio/`, so numbers can sit
 //! side by side): a pool of [`POOL`] random samples, `q ~ U(−π, π)`, `q̇ ~ U(−2, 2)`,
 //! `q̈ ~ U(−5, 5)`; call `i` uses sample `i mod 1024`; one repetition is `N` consecutive calls
 //! with `N` calibrated to last [`Settings::target`] and rounded to whole passes over the pool; one
