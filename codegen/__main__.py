@@ -1,4 +1,5 @@
-"""``python -m codegen [ARM ...] [--check]``: regenerate ``generated/<arm>.rs`` from ``arms/<arm>.toml``."""
+"""``python -m codegen [ARM ...] [--check]``: regenerate ``generated/<arm>.rs`` from ``arms/<arm>.toml``
+and ``generated/kernels.toml`` (the list of kernel kinds) from ``codegen/kernels.py``."""
 
 from __future__ import annotations
 
@@ -9,6 +10,7 @@ from pathlib import Path
 
 from .dh import DhError
 from .generate import Result, generate, write_atomic
+from .kernels import MANIFEST, manifest
 
 
 def _one(path: str) -> Result:
@@ -22,7 +24,20 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out-dir", default="generated", type=Path)
     ap.add_argument("--check", action="store_true", help="fail if a generated file is out of date; write nothing")
     ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--manifest-only", action="store_true", help=f"only write (or --check) generated/{MANIFEST}")
     args = ap.parse_args(argv)
+
+    stale = []
+    target = args.out_dir / MANIFEST
+    if args.check:
+        if not target.exists() or target.read_text(encoding="utf-8") != manifest():
+            stale.append(str(target))
+    else:
+        write_atomic(target, manifest())
+    if args.manifest_only:
+        if stale:
+            print(f"error: out of date: {stale[0]} (run `python -m codegen --manifest-only`)", file=sys.stderr)
+        return 1 if stale else 0
 
     if args.arms:
         paths = [args.arms_dir / f"{a}.toml" for a in args.arms]
@@ -38,7 +53,6 @@ def main(argv: list[str] | None = None) -> int:
     except (DhError, ValueError, ArithmeticError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
-    stale = []
     print(f"{'arm':<10} {'NB':>3} {'seconds':>8}  " + "  ".join(f"{k[0]:>18}" for k in results[0].ops))
     for r in results:
         target = args.out_dir / f"{r.arm}.rs"

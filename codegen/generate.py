@@ -17,11 +17,10 @@ from .algebra import Scalar
 from .base_params import BaseParams, analyse, param_names, random_states
 from .dh import DhTable, load
 from .emit_rust import emit
+from .kernels import INPUT_LEN, KERNELS
 from .kinematics import Symbols, transforms
 from .lagrange import lagrange_function
 from .newton_euler import forward, regressor, rnea
-
-KERNELS = ("regressor", "base_regressor", "mass_matrix", "bias", "gravity", "inverse_dynamics")
 
 
 def source_hash(toml_bytes: bytes) -> str:
@@ -74,50 +73,25 @@ def derive(arm: DhTable, base: BaseParams) -> tuple[Symbols, ca.SX, list[Kernel]
         for i in range(k, n):
             M[i][k] = M[k][i] = col[i]
 
-    q_args = ["q: &[f64; DOF]"]
+    outputs: dict[str, list[Scalar]] = {
+        "regressor": [y for row in Y for y in row],
+        "base_regressor": [y for row in Yb for y in row],
+        "mass_matrix": [m for row in M for m in row],
+        "bias": rnea(tf, forward(tf, dq, zero, g), p_star),
+        "gravity": rnea(tf, forward(tf, zero, zero, g), p_star),
+        "inverse_dynamics": rnea(tf, full, p_star),
+    }
+    if set(outputs) != {k.name for k in KERNELS}:
+        raise AssertionError(f"derive() and codegen/kernels.py disagree: {sorted(outputs)}")
     kernels = [
         Kernel(
-            "regressor",
-            q_args + ["dq: &[f64; DOF]", "ddq: &[f64; DOF]"],
-            ["trig", "q", "dq", "ddq"],
-            [y for row in Y for y in row],
-            "DOF * NP",
-        ),
-        Kernel(
-            "base_regressor",
-            q_args + ["dq: &[f64; DOF]", "ddq: &[f64; DOF]"],
-            ["trig", "q", "dq", "ddq"],
-            [y for row in Yb for y in row],
-            "DOF * NB",
-        ),
-        Kernel(
-            "mass_matrix",
-            q_args + ["theta: &[f64; NB]"],
-            ["trig", "q", "theta"],
-            [m for row in M for m in row],
-            "DOF * DOF",
-        ),
-        Kernel(
-            "bias",
-            q_args + ["dq: &[f64; DOF]", "theta: &[f64; NB]"],
-            ["trig", "q", "dq", "theta"],
-            rnea(tf, forward(tf, dq, zero, g), p_star),
-            "DOF",
-        ),
-        Kernel(
-            "gravity",
-            q_args + ["theta: &[f64; NB]"],
-            ["trig", "q", "theta"],
-            rnea(tf, forward(tf, zero, zero, g), p_star),
-            "DOF",
-        ),
-        Kernel(
-            "inverse_dynamics",
-            q_args + ["dq: &[f64; DOF]", "ddq: &[f64; DOF]", "theta: &[f64; NB]"],
-            ["trig", "q", "dq", "ddq", "theta"],
-            rnea(tf, full, p_star),
-            "DOF",
-        ),
+            k.name,
+            [f"{v}: &[f64; {INPUT_LEN[v]}]" for v in k.inputs],
+            ["trig", *k.inputs],
+            outputs[k.name],
+            k.out_len,
+        )
+        for k in KERNELS
     ]
     return sym, theta, kernels
 

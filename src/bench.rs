@@ -39,40 +39,8 @@ pub mod table;
 /// Number of samples in the input pool (a power of two: call `i` uses sample `i & (POOL − 1)`).
 pub const POOL: usize = 1024;
 
-/// A kernel of the [`Model`] trait.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Kernel {
-    Regressor,
-    BaseRegressor,
-    MassMatrix,
-    Bias,
-    Gravity,
-    InverseDynamics,
-}
-
-impl Kernel {
-    /// Every kernel, in report order.
-    pub const ALL: [Kernel; 6] = [
-        Kernel::Regressor,
-        Kernel::BaseRegressor,
-        Kernel::MassMatrix,
-        Kernel::Bias,
-        Kernel::Gravity,
-        Kernel::InverseDynamics,
-    ];
-
-    /// The trait method's name (`base_regressor`), as in the JSON report.
-    pub fn name(self) -> &'static str {
-        match self {
-            Kernel::Regressor => "regressor",
-            Kernel::BaseRegressor => "base_regressor",
-            Kernel::MassMatrix => "mass_matrix",
-            Kernel::Bias => "bias",
-            Kernel::Gravity => "gravity",
-            Kernel::InverseDynamics => "inverse_dynamics",
-        }
-    }
-}
+/// The kernel kinds (the generator's list; see [`crate::model::Kernel`]).
+pub use crate::model::Kernel;
 
 /// Samples in the streaming identification run of `dynid bench`.
 pub const IDENTIFY_SAMPLES: usize = 1_000_000;
@@ -436,50 +404,28 @@ impl Case {
 
     /// Output length of `kernel`.
     pub fn out_len(&self, kernel: Kernel) -> usize {
-        let (n, np, nb) = (self.arm.dof(), self.arm.np(), self.arm.nb());
-        match kernel {
-            Kernel::Regressor => n * np,
-            Kernel::BaseRegressor => n * nb,
-            Kernel::MassMatrix => n * n,
-            Kernel::Bias | Kernel::Gravity | Kernel::InverseDynamics => n,
-        }
+        kernel.out_len(self.arm.dof(), self.arm.np(), self.arm.nb())
     }
 
     /// The generated `kernel` on pool sample `k` (inputs through `black_box`).
     #[inline]
     pub fn call_generated(&self, kernel: Kernel, k: usize, out: &mut [f64]) {
-        let (a, s) = (self.arm, &self.pool);
+        let s = &self.pool;
         let (q, dq, ddq, th) = (
             black_box(s.q(k)),
             black_box(s.dq(k)),
             black_box(s.ddq(k)),
             &self.theta[..],
         );
-        match kernel {
-            Kernel::Regressor => a.regressor(q, dq, ddq, out),
-            Kernel::BaseRegressor => a.base_regressor(q, dq, ddq, out),
-            Kernel::MassMatrix => a.mass_matrix(q, th, out),
-            Kernel::Bias => a.bias(q, dq, th, out),
-            Kernel::Gravity => a.gravity(q, th, out),
-            Kernel::InverseDynamics => a.inverse_dynamics(q, dq, ddq, th, out),
-        }
+        kernel.call(self.arm, q, dq, ddq, th, out);
     }
 
     /// The lane-batched generated `kernel` on pool samples `LANES·c … LANES·c + LANES − 1`
     /// (`c` wraps around the pool; inputs through `black_box`).
     #[inline]
     pub fn call_lanes(&self, kernel: Kernel, c: usize, out: &mut [Pack]) {
-        let a = self.arm;
         let [q, dq, ddq] = black_box(&self.packed[c % self.packed.len()]);
-        let th = &self.theta_packed[..];
-        match kernel {
-            Kernel::Regressor => a.regressor_lanes(q, dq, ddq, out),
-            Kernel::BaseRegressor => a.base_regressor_lanes(q, dq, ddq, out),
-            Kernel::MassMatrix => a.mass_matrix_lanes(q, th, out),
-            Kernel::Bias => a.bias_lanes(q, dq, th, out),
-            Kernel::Gravity => a.gravity_lanes(q, th, out),
-            Kernel::InverseDynamics => a.inverse_dynamics_lanes(q, dq, ddq, th, out),
-        }
+        kernel.call_lanes(self.arm, q, dq, ddq, &self.theta_packed[..], out);
     }
 
     /// True when every lane of [`Case::call_lanes`] equals [`Case::call_generated`] on its
@@ -500,7 +446,8 @@ impl Case {
         })
     }
 
-    /// The reference `kernel` on pool sample `k` (inputs through `black_box`).
+    /// The reference `kernel` on pool sample `k` (inputs through `black_box`): the oracle of each
+    /// kernel kind, written by hand (a new kind needs its reference here).
     #[inline]
     pub fn call_reference(&self, r: &mut Reference, kernel: Kernel, k: usize, out: &mut [f64]) {
         let s = &self.pool;

@@ -14,14 +14,14 @@
 //! - Gravity is the arm's own (from its TOML) and is included in `bias`, `gravity` and
 //!   `inverse_dynamics`: `τ = M(q)·q̈ + bias(q,q̇)`, `bias(q,0) = gravity(q)`.
 //!
+//! - The kernel kinds are the generator's list (`codegen/kernels.py` → `generated/kernels.toml`);
+//!   [`Kernel`] enumerates them.
 //! - The `*_lanes` methods run the same kernels on [`crate::pack::LANES`] samples at once
 //!   (structure of arrays: `q[j]` holds joint `j` of every sample; see [`crate::pack`]); each lane
 //!   equals the scalar method's result for that sample bit for bit.
 //!
 //! The slice methods panic if a slice has the wrong length: that is a programming error, never a
 //! user-input error (user input is validated before it reaches a kernel).
-
-use crate::pack::Pack;
 
 /// Per-link parameter order (Khalil/Gautier), about the link-frame origin.
 pub const PARAM_ORDER: [&str; 10] = ["XX", "XY", "XZ", "YY", "YZ", "ZZ", "MX", "MY", "MZ", "M"];
@@ -58,38 +58,18 @@ pub trait Model: Send + Sync {
     /// Operation counts per kernel.
     fn op_counts(&self) -> &'static [OpCount];
 
-    /// Full regressor `Y` (`dof × np`, row-major) with `τ = Y·p`.
-    fn regressor(&self, q: &[f64], dq: &[f64], ddq: &[f64], out: &mut [f64]);
-    /// Base regressor `Yb` (`dof × nb`, row-major) with `τ = Yb·θ`.
-    fn base_regressor(&self, q: &[f64], dq: &[f64], ddq: &[f64], out: &mut [f64]);
-    /// Joint-space mass matrix `M(q)` (`dof × dof`, row-major, full symmetric).
-    fn mass_matrix(&self, q: &[f64], theta: &[f64], out: &mut [f64]);
-    /// Coriolis/centrifugal + gravity torques `h(q, q̇)`.
-    fn bias(&self, q: &[f64], dq: &[f64], theta: &[f64], out: &mut [f64]);
-    /// Gravity torques `g(q)`.
-    fn gravity(&self, q: &[f64], theta: &[f64], out: &mut [f64]);
-    /// Inverse dynamics `τ = M(q)q̈ + h(q, q̇)`.
-    fn inverse_dynamics(&self, q: &[f64], dq: &[f64], ddq: &[f64], theta: &[f64], out: &mut [f64]);
+    // The kernels, one pair of methods per kernel kind of `generated/kernels.toml` (the list the
+    // generator writes from `codegen/kernels.py`, the only place the kinds are listed):
+    // `fn <kernel>(&self, <inputs>: &[f64], out: &mut [f64])`, e.g.
+    // `fn mass_matrix(&self, q: &[f64], theta: &[f64], out: &mut [f64])`, and
+    // `fn <kernel>_lanes(&self, <inputs>: &[Pack], out: &mut [Pack])` running it on `LANES`
+    // samples. Each arm's impl is expanded from the same list by `dynid_macros::arm!`, so the trait
+    // and every generated arm cannot disagree; see `cargo doc` for the expanded methods.
+    dynid_macros::kernel_methods!();
+
     /// Base parameters from full parameters: `θ = B·p`.
     fn base_params(&self, p: &[f64], out: &mut [f64]);
-
-    /// [`Model::regressor`] of `LANES` samples.
-    fn regressor_lanes(&self, q: &[Pack], dq: &[Pack], ddq: &[Pack], out: &mut [Pack]);
-    /// [`Model::base_regressor`] of `LANES` samples.
-    fn base_regressor_lanes(&self, q: &[Pack], dq: &[Pack], ddq: &[Pack], out: &mut [Pack]);
-    /// [`Model::mass_matrix`] of `LANES` samples (`theta` per lane; [`Pack::splat`] for one θ).
-    fn mass_matrix_lanes(&self, q: &[Pack], theta: &[Pack], out: &mut [Pack]);
-    /// [`Model::bias`] of `LANES` samples.
-    fn bias_lanes(&self, q: &[Pack], dq: &[Pack], theta: &[Pack], out: &mut [Pack]);
-    /// [`Model::gravity`] of `LANES` samples.
-    fn gravity_lanes(&self, q: &[Pack], theta: &[Pack], out: &mut [Pack]);
-    /// [`Model::inverse_dynamics`] of `LANES` samples.
-    fn inverse_dynamics_lanes(
-        &self,
-        q: &[Pack],
-        dq: &[Pack],
-        ddq: &[Pack],
-        theta: &[Pack],
-        out: &mut [Pack],
-    );
 }
+
+// `Kernel`: one variant per kernel kind, with `ALL`, `name`, `out_len`, `call` and `call_lanes`.
+dynid_macros::kernel_enum!();

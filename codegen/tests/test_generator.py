@@ -18,6 +18,7 @@ from codegen import __main__ as cli
 from codegen.base_params import analyse, random_states
 from codegen.dh import DhError, load
 from codegen.generate import _sx, derive, generate, source_hash
+from codegen.kernels import INPUT_LEN, KERNELS, MANIFEST, manifest
 from codegen.lagrange import lagrange_function
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -181,3 +182,16 @@ def test_cli_check_mode_detects_stale_files(tmp_path, capsys):
     assert cli.main(["--arms-dir", str(arms), "--out-dir", str(out), "--check"]) == 0
     (arms / "two.toml").write_text((arms / "two.toml").read_text().replace("a = 1.0", "a = 0.5"))
     assert cli.main(["--arms-dir", str(arms), "--out-dir", str(out), "--check"]) == 1
+
+
+def test_kernel_manifest_is_fresh_and_lists_the_generated_functions():
+    """generated/kernels.toml is the list in codegen/kernels.py, and every arm defines exactly those."""
+    assert (ROOT / "generated" / MANIFEST).read_text(encoding="utf-8") == manifest()
+    assert len({k.name for k in KERNELS}) == len(KERNELS)
+    for name in ARMS:
+        text = (ROOT / "generated" / f"{name}.rs").read_text(encoding="utf-8")
+        fns = [line.split("(")[0].removeprefix("pub fn ") for line in text.splitlines() if line.startswith("pub fn ")]
+        assert fns == [k.name for k in KERNELS] + ["base_params"]
+        for k in KERNELS:
+            args = "".join(f"{v}: &[f64; {INPUT_LEN[v]}], " for v in k.inputs)
+            assert f"pub fn {k.name}({args}out: &mut [f64; {k.out_len}])" in text

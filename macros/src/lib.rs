@@ -14,7 +14,13 @@
 //! }
 //! ```
 //!
-//! The `include_str!`s make cargo rebuild when either file changes. Anything wrong becomes a
+//! The kernel kinds (`regressor`, `base_regressor`, …) are named nowhere in this crate: they come
+//! from `generated/kernels.toml`, the list the generator writes from `codegen/kernels.py`. Each
+//! generated file is checked against it (every kernel present, with the listed arguments), and the
+//! lane copies and the `Model` methods are expanded from it. [`kernel_methods!`] declares the
+//! same methods in the trait and [`kernel_enum!`] defines `dynid::model::Kernel` from it.
+//!
+//! The `include_str!`s make cargo rebuild when any of these files changes. Anything wrong becomes a
 //! `compile_error!` naming the arm, the file and the fix.
 //!
 //! `arm!(name, root = "dir")` reads from another root (for tests): an absolute path, or one
@@ -31,6 +37,9 @@ use syn::{Ident, Item, LitStr, Token};
 
 mod hash;
 mod lanes;
+mod manifest;
+
+use manifest::KernelSpec;
 
 struct ArmArgs {
     name: Ident,
@@ -82,25 +91,8 @@ const REQUIRED_CONSTS: [&str; 11] = [
     "BASE_MAP",
     "OP_COUNTS",
 ];
-const REQUIRED_FNS: [&str; 7] = [
-    "regressor",
-    "base_regressor",
-    "mass_matrix",
-    "bias",
-    "gravity",
-    "inverse_dynamics",
-    "base_params",
-];
-
-/// The kernels that also get a lane-batched copy (`<name>_lanes`).
-const KERNELS: [&str; 6] = [
-    "regressor",
-    "base_regressor",
-    "mass_matrix",
-    "bias",
-    "gravity",
-    "inverse_dynamics",
-];
+/// The one function of the contract that is not a kernel (it runs once per fit: no lane copy).
+const BASE_PARAMS_FN: &str = "base_params";
 
 fn root_dir(args: &ArmArgs) -> Result<PathBuf, String> {
     let manifest = std::env::var_os("CARGO_MANIFEST_DIR")
@@ -159,19 +151,22 @@ fn expand(args: &ArmArgs) -> Result<proc_macro2::TokenStream, String> {
     let file = syn::parse_file(&generated).map_err(|e| {
         format!("arm `{arm}`: {gen_rel} is malformed: not valid Rust ({e}) — {fix}")
     })?;
-    check_items(&arm, &gen_rel, &file.items, &fix)?;
+    let kernels = manifest::read(&root, &version).map_err(|e| format!("arm `{arm}`: {e}"))?;
+    check_items(&arm, &gen_rel, &file.items, &kernels, &fix)?;
 
     let items = &file.items;
     // Lane-batched copies of the kernels (not of `base_params`, which runs once per fit).
     let lane_fns: Vec<syn::ItemFn> = items
         .iter()
         .filter_map(|item| match item {
-            Item::Fn(f) if KERNELS.contains(&f.sig.ident.to_string().as_str()) => {
+            Item::Fn(f) if kernels.iter().any(|k| f.sig.ident == k.name) => {
                 Some(lanes::lane_copy(f))
             }
             _ => None,
         })
         .collect();
+    let impl_fns = kernels.iter().map(impl_methods);
+    let manifest_str = path_str(&root.join(manifest::PATH));
     let module = format_ident!("{}", arm);
     let type_name = format_ident!("{}", hash::camel_case(&arm));
     let gen_str = path_str(&gen_path);
@@ -202,6 +197,8 @@ fn expand(args: &ArmArgs) -> Result<proc_macro2::TokenStream, String> {
             const _GENERATED_SOURCE: &str = include_str!(#gen_str);
             #[doc(hidden)]
             const _GENERATOR_INIT: &str = include_str!(#init_str);
+            #[doc(hidden)]
+            const _KERNELS_MANIFEST: &str = include_str!(#manifest_str);
             /// The D-H table these kernels were generated from.
             pub const ARM_TOML: &str = include_str!(#toml_str);
 
@@ -258,52 +255,24 @@ fn expand(args: &ArmArgs) -> Result<proc_macro2::TokenStream, String> {
                 fn base_param_exprs(&self) -> &'static [&'static str] { &BASE_PARAM_EXPRS }
                 fn arm_toml(&self) -> &'static str { ARM_TOML }
                 fn op_counts(&self) -> &'static [crate::model::OpCount] { &_OP_COUNTS }
-                fn regressor(&self, q: &[f64], dq: &[f64], ddq: &[f64], out: &mut [f64]) {
-                    regressor(_arr(q, "q"), _arr(dq, "dq"), _arr(ddq, "ddq"), _arr_mut(out, "out"))
-                }
-                fn base_regressor(&self, q: &[f64], dq: &[f64], ddq: &[f64], out: &mut [f64]) {
-                    base_regressor(_arr(q, "q"), _arr(dq, "dq"), _arr(ddq, "ddq"), _arr_mut(out, "out"))
-                }
-                fn mass_matrix(&self, q: &[f64], theta: &[f64], out: &mut [f64]) {
-                    mass_matrix(_arr(q, "q"), _arr(theta, "theta"), _arr_mut(out, "out"))
-                }
-                fn bias(&self, q: &[f64], dq: &[f64], theta: &[f64], out: &mut [f64]) {
-                    bias(_arr(q, "q"), _arr(dq, "dq"), _arr(theta, "theta"), _arr_mut(out, "out"))
-                }
-                fn gravity(&self, q: &[f64], theta: &[f64], out: &mut [f64]) {
-                    gravity(_arr(q, "q"), _arr(theta, "theta"), _arr_mut(out, "out"))
-                }
-                fn inverse_dynamics(&self, q: &[f64], dq: &[f64], ddq: &[f64], theta: &[f64], out: &mut [f64]) {
-                    inverse_dynamics(_arr(q, "q"), _arr(dq, "dq"), _arr(ddq, "ddq"), _arr(theta, "theta"), _arr_mut(out, "out"))
-                }
+                #(#impl_fns)*
                 fn base_params(&self, p: &[f64], out: &mut [f64]) {
                     base_params(_arr(p, "p"), _arr_mut(out, "out"))
-                }
-                fn regressor_lanes(&self, q: &[P], dq: &[P], ddq: &[P], out: &mut [P]) {
-                    regressor_lanes(_arr(q, "q"), _arr(dq, "dq"), _arr(ddq, "ddq"), _arr_mut(out, "out"))
-                }
-                fn base_regressor_lanes(&self, q: &[P], dq: &[P], ddq: &[P], out: &mut [P]) {
-                    base_regressor_lanes(_arr(q, "q"), _arr(dq, "dq"), _arr(ddq, "ddq"), _arr_mut(out, "out"))
-                }
-                fn mass_matrix_lanes(&self, q: &[P], theta: &[P], out: &mut [P]) {
-                    mass_matrix_lanes(_arr(q, "q"), _arr(theta, "theta"), _arr_mut(out, "out"))
-                }
-                fn bias_lanes(&self, q: &[P], dq: &[P], theta: &[P], out: &mut [P]) {
-                    bias_lanes(_arr(q, "q"), _arr(dq, "dq"), _arr(theta, "theta"), _arr_mut(out, "out"))
-                }
-                fn gravity_lanes(&self, q: &[P], theta: &[P], out: &mut [P]) {
-                    gravity_lanes(_arr(q, "q"), _arr(theta, "theta"), _arr_mut(out, "out"))
-                }
-                fn inverse_dynamics_lanes(&self, q: &[P], dq: &[P], ddq: &[P], theta: &[P], out: &mut [P]) {
-                    inverse_dynamics_lanes(_arr(q, "q"), _arr(dq, "dq"), _arr(ddq, "ddq"), _arr(theta, "theta"), _arr_mut(out, "out"))
                 }
             }
         }
     })
 }
 
-/// Every const and fn of the contract must be there, and `NAME` must be the arm.
-fn check_items(arm: &str, gen_rel: &str, items: &[Item], fix: &str) -> Result<(), String> {
+/// Every const and fn of the contract must be there (the kernels of `generated/kernels.toml`, each
+/// with the listed arguments, and `base_params`), and `NAME` must be the arm.
+fn check_items(
+    arm: &str,
+    gen_rel: &str,
+    items: &[Item],
+    kernels: &[KernelSpec],
+    fix: &str,
+) -> Result<(), String> {
     let mut consts = Vec::new();
     let mut fns = Vec::new();
     let mut name_value = None;
@@ -321,21 +290,59 @@ fn check_items(arm: &str, gen_rel: &str, items: &[Item], fix: &str) -> Result<()
                 }
                 consts.push(c.ident.to_string());
             }
-            Item::Fn(f) => fns.push(f.sig.ident.to_string()),
+            Item::Fn(f) => fns.push(f),
             _ => {}
         }
     }
+    let required_fns = kernels
+        .iter()
+        .map(|k| k.name.as_str())
+        .chain([BASE_PARAMS_FN]);
     let missing: Vec<&str> = REQUIRED_CONSTS
         .iter()
-        .filter(|c| !consts.iter().any(|x| x == *c))
-        .chain(REQUIRED_FNS.iter().filter(|f| !fns.iter().any(|x| x == *f)))
         .copied()
+        .filter(|c| !consts.iter().any(|x| x == c))
+        .chain(required_fns.filter(|f| !fns.iter().any(|x| x.sig.ident == f)))
         .collect();
     if !missing.is_empty() {
         return Err(format!(
             "arm `{arm}`: {gen_rel} is malformed: missing {} — {fix}",
             missing.join(", ")
         ));
+    }
+    for f in &fns {
+        let name = f.sig.ident.to_string();
+        let Some(k) = kernels.iter().find(|k| k.name == name) else {
+            if name == BASE_PARAMS_FN {
+                continue;
+            }
+            return Err(format!(
+                "arm `{arm}`: {gen_rel} defines `fn {name}`, which is not a kernel of {} ({}) — {fix}",
+                manifest::PATH,
+                kernels.iter().map(|k| k.name.as_str()).collect::<Vec<_>>().join(", ")
+            ));
+        };
+        let got: Vec<String> = f
+            .sig
+            .inputs
+            .iter()
+            .map(|a| match a {
+                syn::FnArg::Typed(t) => match &*t.pat {
+                    syn::Pat::Ident(p) => p.ident.to_string(),
+                    pat => quote!(#pat).to_string(),
+                },
+                syn::FnArg::Receiver(_) => "self".to_string(),
+            })
+            .collect();
+        let want: Vec<&str> = k.inputs.iter().map(String::as_str).chain(["out"]).collect();
+        if got != want {
+            return Err(format!(
+                "arm `{arm}`: {gen_rel} is malformed: `fn {name}` takes ({}), {} says ({}) — {fix}",
+                got.join(", "),
+                manifest::PATH,
+                want.join(", ")
+            ));
+        }
     }
     match name_value {
         Some(n) if n == arm => Ok(()),
@@ -346,6 +353,189 @@ fn check_items(arm: &str, gen_rel: &str, items: &[Item], fix: &str) -> Result<()
             "arm `{arm}`: {gen_rel} is malformed: `NAME` is not a string literal — {fix}"
         )),
     }
+}
+
+/// The `Model` methods of one kernel for a generated arm: slices → fixed-size arrays, then the
+/// generated function (and likewise for its lane copy).
+fn impl_methods(k: &KernelSpec) -> proc_macro2::TokenStream {
+    let name = format_ident!("{}", k.name);
+    let lanes = format_ident!("{}_lanes", k.name);
+    let args: Vec<Ident> = k.inputs.iter().map(|i| format_ident!("{}", i)).collect();
+    let labels = &k.inputs;
+    quote! {
+        fn #name(&self, #(#args: &[f64],)* out: &mut [f64]) {
+            #name(#(_arr(#args, #labels),)* _arr_mut(out, "out"))
+        }
+        fn #lanes(&self, #(#args: &[P],)* out: &mut [P]) {
+            #lanes(#(_arr(#args, #labels),)* _arr_mut(out, "out"))
+        }
+    }
+}
+
+/// The manifest of the crate being compiled (`$CARGO_MANIFEST_DIR/generated/kernels.toml`) and
+/// its path, checked against the generator version.
+fn crate_manifest() -> Result<(Vec<KernelSpec>, PathBuf), String> {
+    let root = PathBuf::from(
+        std::env::var_os("CARGO_MANIFEST_DIR")
+            .ok_or("CARGO_MANIFEST_DIR is not set (build with cargo)")?,
+    );
+    let init = std::fs::read_to_string(root.join("codegen/__init__.py"))
+        .map_err(|e| format!("cannot read codegen/__init__.py: {e}"))?;
+    let version = hash::generator_version(&init)
+        .ok_or("codegen/__init__.py has no line `GENERATOR_VERSION = \"x.y.z\"` — restore it")?;
+    let kernels = manifest::read(&root, &version)?;
+    Ok((kernels, root.join(manifest::PATH)))
+}
+
+fn or_error(result: Result<proc_macro2::TokenStream, String>) -> TokenStream {
+    match result {
+        Ok(tokens) => tokens.into(),
+        Err(message) => syn::Error::new(Span::call_site(), message)
+            .to_compile_error()
+            .into(),
+    }
+}
+
+/// Declares the kernel methods of the `Model` trait (inside `trait Model { … }`): for every kernel
+/// of `generated/kernels.toml`, `fn <name>(&self, <inputs>: &[f64], out: &mut [f64])` and its
+/// lane-batched `fn <name>_lanes(&self, <inputs>: &[Pack], out: &mut [Pack])`.
+#[proc_macro]
+pub fn kernel_methods(input: TokenStream) -> TokenStream {
+    if !input.is_empty() {
+        return syn::Error::new(Span::call_site(), "usage: `kernel_methods!()`")
+            .to_compile_error()
+            .into();
+    }
+    or_error(crate_manifest().map(|(kernels, _)| {
+        let methods = kernels.iter().map(|k| {
+            let name = format_ident!("{}", k.name);
+            let lanes = format_ident!("{}_lanes", k.name);
+            let args: Vec<Ident> = k.inputs.iter().map(|i| format_ident!("{}", i)).collect();
+            let doc = &k.doc;
+            let theta_note = if k.inputs.iter().any(|i| i == "theta") {
+                " (`theta` per lane; `Pack::splat` for one θ)"
+            } else {
+                ""
+            };
+            let lanes_doc = format!("[`Model::{}`] of `LANES` samples{theta_note}.", k.name);
+            quote! {
+                #[doc = #doc]
+                fn #name(&self, #(#args: &[f64],)* out: &mut [f64]);
+                #[doc = #lanes_doc]
+                fn #lanes(&self, #(#args: &[crate::pack::Pack],)* out: &mut [crate::pack::Pack]);
+            }
+        });
+        quote!(#(#methods)*)
+    }))
+}
+
+/// Defines `pub enum Kernel` (one variant per kernel of `generated/kernels.toml`, in its order)
+/// with `ALL`, `name`, `out_len` and the calls `call` / `call_lanes` through a `&dyn Model`.
+#[proc_macro]
+pub fn kernel_enum(input: TokenStream) -> TokenStream {
+    if !input.is_empty() {
+        return syn::Error::new(Span::call_site(), "usage: `kernel_enum!()`")
+            .to_compile_error()
+            .into();
+    }
+    or_error(crate_manifest().and_then(|(kernels, path)| {
+        let n = kernels.len();
+        let variants: Vec<Ident> = kernels
+            .iter()
+            .map(|k| format_ident!("{}", hash::camel_case(&k.name)))
+            .collect();
+        let names: Vec<&str> = kernels.iter().map(|k| k.name.as_str()).collect();
+        let docs: Vec<String> = kernels
+            .iter()
+            .map(|k| format!("[`Model::{}`]: {}", k.name, k.doc))
+            .collect();
+        let out_lens = kernels
+            .iter()
+            .map(|k| syn::parse_str::<syn::Expr>(&k.out_len).map_err(|e| e.to_string()))
+            .collect::<Result<Vec<_>, _>>()?;
+        let methods: Vec<Ident> = kernels
+            .iter()
+            .map(|k| format_ident!("{}", k.name))
+            .collect();
+        let lanes: Vec<Ident> = kernels
+            .iter()
+            .map(|k| format_ident!("{}_lanes", k.name))
+            .collect();
+        let args: Vec<Vec<Ident>> = kernels
+            .iter()
+            .map(|k| k.inputs.iter().map(|i| format_ident!("{}", i)).collect())
+            .collect();
+        let path = path_str(&path);
+        Ok(quote! {
+            #[doc(hidden)]
+            const _KERNELS_MANIFEST: &str = include_str!(#path);
+
+            /// A kernel kind of the [`Model`] trait, as listed by the generator
+            /// (`codegen/kernels.py` → `generated/kernels.toml`).
+            #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+            pub enum Kernel {
+                #(#[doc = #docs] #variants,)*
+            }
+
+            impl Kernel {
+                /// Every kernel, in the generator's order (the report order).
+                pub const ALL: [Kernel; #n] = [#(Kernel::#variants),*];
+
+                /// The trait method's name (`base_regressor`), as in the JSON report.
+                pub fn name(self) -> &'static str {
+                    match self {
+                        #(Kernel::#variants => #names,)*
+                    }
+                }
+
+                /// Length of the output of an arm with `dof` joints, `np` full and `nb` base
+                /// parameters.
+                #[allow(non_snake_case)]
+                pub fn out_len(self, dof: usize, np: usize, nb: usize) -> usize {
+                    let (DOF, NP, NB) = (dof, np, nb);
+                    let _ = (DOF, NP, NB);
+                    match self {
+                        #(Kernel::#variants => #out_lens,)*
+                    }
+                }
+
+                /// Calls this kernel of `model`; inputs it does not take are ignored
+                /// (`theta`: base parameters).
+                #[inline]
+                pub fn call(
+                    self,
+                    model: &dyn Model,
+                    q: &[f64],
+                    dq: &[f64],
+                    ddq: &[f64],
+                    theta: &[f64],
+                    out: &mut [f64],
+                ) {
+                    let _ = (q, dq, ddq, theta);
+                    match self {
+                        #(Kernel::#variants => model.#methods(#(#args,)* out),)*
+                    }
+                }
+
+                /// Calls the lane-batched copy of this kernel of `model` (see [`crate::pack`]).
+                #[inline]
+                pub fn call_lanes(
+                    self,
+                    model: &dyn Model,
+                    q: &[crate::pack::Pack],
+                    dq: &[crate::pack::Pack],
+                    ddq: &[crate::pack::Pack],
+                    theta: &[crate::pack::Pack],
+                    out: &mut [crate::pack::Pack],
+                ) {
+                    let _ = (q, dq, ddq, theta);
+                    match self {
+                        #(Kernel::#variants => model.#lanes(#(#args,)* out),)*
+                    }
+                }
+            }
+        })
+    }))
 }
 
 fn short(hash: &str) -> &str {

@@ -5,7 +5,7 @@
 //! the 7-DOF arm's longer sums.
 
 use dynid::dh::DhTable;
-use dynid::model::Model;
+use dynid::model::{Kernel, Model};
 use dynid::reference::RefModel;
 use nalgebra::DMatrix;
 use rand::Rng;
@@ -170,32 +170,13 @@ fn lane_kernels_equal_the_scalar_kernels_bit_for_bit() {
                 }
             };
             let s = &samples;
-            let mut out = vec![Pack::default(); n * np];
-            m.regressor_lanes(&q, &dq, &ddq, &mut out);
-            check("regressor", &out, &|l, o| {
-                m.regressor(&s[l][0], &s[l][1], &s[l][2], o)
-            });
-            let mut out = vec![Pack::default(); n * nb];
-            m.base_regressor_lanes(&q, &dq, &ddq, &mut out);
-            check("base_regressor", &out, &|l, o| {
-                m.base_regressor(&s[l][0], &s[l][1], &s[l][2], o)
-            });
-            let mut out = vec![Pack::default(); n * n];
-            m.mass_matrix_lanes(&q, &th, &mut out);
-            check("mass_matrix", &out, &|l, o| {
-                m.mass_matrix(&s[l][0], &s[l][3], o)
-            });
-            let mut out = vec![Pack::default(); n];
-            m.bias_lanes(&q, &dq, &th, &mut out);
-            check("bias", &out, &|l, o| {
-                m.bias(&s[l][0], &s[l][1], &s[l][3], o)
-            });
-            m.gravity_lanes(&q, &th, &mut out);
-            check("gravity", &out, &|l, o| m.gravity(&s[l][0], &s[l][3], o));
-            m.inverse_dynamics_lanes(&q, &dq, &ddq, &th, &mut out);
-            check("inverse_dynamics", &out, &|l, o| {
-                m.inverse_dynamics(&s[l][0], &s[l][1], &s[l][2], &s[l][3], o)
-            });
+            for kernel in Kernel::ALL {
+                let mut out = vec![Pack::default(); kernel.out_len(n, np, nb)];
+                kernel.call_lanes(m, &q, &dq, &ddq, &th, &mut out);
+                check(kernel.name(), &out, &|l, o| {
+                    kernel.call(m, &s[l][0], &s[l][1], &s[l][2], &s[l][3], o)
+                });
+            }
         }
     }
 }

@@ -1,0 +1,3 @@
+dynid_macros::arm!(mismatch, root = "tests/ui/fixtures");
+
+fn main() {}
