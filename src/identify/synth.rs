@@ -180,10 +180,6 @@ impl SynthExcitation {
     }
 }
 
-/// The former name of [`SynthExcitation`] (still used by `tests/it/identify.rs`).
-#[doc(hidden)]
-pub type Fourier = SynthExcitation;
-
 /// Simulates `spec` (see the module docs).
 pub fn generate(spec: &Spec) -> Trajectory {
     let table = &spec.table;

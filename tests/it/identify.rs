@@ -11,7 +11,7 @@ use dynid::data::Trajectory;
 use dynid::derivative::{self, Method};
 use dynid::dh::DhTable;
 use dynid::effects::{Effect, EffectsSpec, Term};
-use dynid::identify::synth::{generate, Fourier, Spec};
+use dynid::identify::synth::{generate, Spec, SynthExcitation};
 use dynid::identify::{self, base::BaseModel, Config, Outcome};
 use dynid::log::Log;
 
@@ -592,7 +592,7 @@ fn filtered_and_state_predictions_reproduce_noise_free_torque() {
 /// reproduce q̇ and q̈ to a small fraction of their range (quantisation step 4.8e-5 rad).
 #[test]
 fn derivative_estimators_match_analytic_derivatives() {
-    let f = Fourier::random(&[1.5, 1.0], 0.2, 5, 3);
+    let f = SynthExcitation::random(&[1.5, 1.0], 0.2, 5, 3);
     let fs = 500.0;
     let t: Vec<f64> = (0..20_000).map(|k| k as f64 / fs).collect();
     let res = 2.0 * std::f64::consts::PI / 131072.0;
