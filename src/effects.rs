@@ -198,7 +198,7 @@ pub fn parse_list(spec: &str, dof: usize) -> Result<EffectsSpec, String> {
 /// What `--effects` asked for.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum EffectsSpec {
-    /// Search with [`select`].
+    /// Search with [`crate::identify::select`].
     Auto,
     /// Exactly these terms (possibly none).
     Fixed(Vec<Term>),

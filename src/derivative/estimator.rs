@@ -5,8 +5,7 @@ use super::{DerivativeReport, Filter, Options, States, SPECTRUM_PIECES, SPECTRUM
 use crate::data::Trajectory;
 use crate::log::Log;
 use crate::signal::{
-    auto_cutoff, central_uniform, resample_linear, ChannelSpectrum, DerivativeError, Grid, Psd,
-    Sampling, ZeroPhase, PIECE,
+    auto_cutoff, resample_linear, ChannelSpectrum, DerivativeError, Grid, Psd, Sampling, PIECE,
 };
 
 /// The estimator of one file, set up once (sampling, grid, cut-off, filter) and then run window
@@ -136,60 +135,17 @@ impl Estimator {
         let qg = g(&w.rows.q);
         let dqg = w.rows.dq.as_deref().filter(|_| self.use_dq).map(g);
         let ddqg = w.rows.ddq.as_deref().filter(|_| self.given).map(g);
-        let cut = |x: Vec<f64>| x[lo - elo..hi - elo].to_vec();
-        let dof = w.rows.dof;
-        let mut st = States {
-            lo,
-            q: Vec::with_capacity(dof),
-            dq: Vec::with_capacity(dof),
-            ddq: Vec::with_capacity(dof),
+        let keep = lo - elo..hi - elo;
+        let [q, dq, ddq] = match (dqg, ddqg) {
+            (Some(d), Some(dd)) if self.given => {
+                [qg, d, dd].map(|c| c.into_iter().map(|x| x[keep.clone()].to_vec()).collect())
+            }
+            (dqg, _) => self
+                .filter
+                .as_zero_phase()
+                .derivatives_many(qg, dqg, dt, pad_left, pad_right, keep),
         };
-        match (&self.filter, dqg, ddqg) {
-            (_, Some(d), Some(dd)) if self.given => {
-                (st.q, st.dq, st.ddq) = (qg, d, dd);
-                for x in st.q.iter_mut().chain(&mut st.dq).chain(&mut st.ddq) {
-                    *x = cut(std::mem::take(x));
-                }
-            }
-            (Filter::Butterworth(bw), dqg, _) => {
-                // All channels in one side-by-side sweep.
-                let mut q = qg;
-                let mut v = dqg.unwrap_or_default();
-                let mut chans: Vec<&mut [f64]> = q
-                    .iter_mut()
-                    .chain(v.iter_mut())
-                    .map(|c| c.as_mut_slice())
-                    .collect();
-                bw.apply_many(&mut chans, pad_left, pad_right);
-                for j in 0..dof {
-                    let (d1, d2) = if v.is_empty() {
-                        central_uniform(&q[j], dt)
-                    } else {
-                        let a = central_uniform(&v[j], dt).0;
-                        (std::mem::take(&mut v[j]), a)
-                    };
-                    st.q.push(cut(std::mem::take(&mut q[j])));
-                    st.dq.push(cut(d1));
-                    st.ddq.push(cut(d2));
-                }
-            }
-            (Filter::SavGol(sg), dqg, _) => {
-                for (j, qj) in qg.iter().enumerate() {
-                    let [a, b, c] = sg.derivatives_ends(qj, pad_left, pad_right);
-                    let (b, c) = match &dqg {
-                        Some(d) => {
-                            let [v, acc, _] = sg.derivatives_ends(&d[j], pad_left, pad_right);
-                            (v, acc)
-                        }
-                        None => (b, c),
-                    };
-                    st.q.push(cut(a));
-                    st.dq.push(cut(b));
-                    st.ddq.push(cut(c));
-                }
-            }
-        }
-        st
+        States { lo, q, dq, ddq }
     }
 }
 

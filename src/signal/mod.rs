@@ -16,11 +16,12 @@
 //! - `cutoff.rs`: the automatic cut-off rule ([`auto_cutoff`], [`Psd`], [`ChannelSpectrum`]).
 //!
 //! [`ZeroPhase`] (here) is the one interface the estimator and the identification's parallel
-//! filtering call. **To add a derivative estimator or smoother:** add a file implementing
-//! [`ZeroPhase`], add a variant to [`crate::derivative::Method`] and one to
-//! [`crate::derivative::Filter`] with its arms in `Filter::lowpass`, `Filter::as_zero_phase` and
-//! the derivative step of `Estimator::window` (filtering plus [`central_uniform`], as for
-//! Butterworth, or the method's own derivatives, as for Savitzky–Golay).
+//! filtering call: `apply`/`apply_many` filter, `derivatives_many` gives value, q̇ and q̈ of a
+//! window (by default filtering side by side, then [`central_uniform`]; Savitzky–Golay overrides
+//! it with its own fitted derivatives). **To add a derivative estimator or smoother:** add a file
+//! implementing [`ZeroPhase`] (override `derivatives_many` if it differentiates by itself), and a
+//! variant to [`crate::derivative::Method`] and to [`crate::derivative::Filter`] with its arms in
+//! `Filter::lowpass` and `Filter::as_zero_phase`.
 
 pub mod butterworth;
 pub mod central_difference;
@@ -39,6 +40,8 @@ pub use resample::{resample_linear, Grid};
 pub use sampling::{Sampling, GAP_STEPS, MIN_SAMPLES};
 pub use savgol::{SavGol, SG_DEGREE};
 pub use welch::welch_psd;
+
+use std::ops::Range;
 
 /// Errors of derivative estimation (inputs come from user files, so every case has a message).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -86,6 +89,46 @@ pub trait ZeroPhase: Sync {
     fn gain(&self, f: f64) -> f64;
     /// Short description for reports.
     fn describe(&self) -> String;
+    /// Filtered value, first and second derivative of the channels `q` (one window, step `dt`,
+    /// ends as in [`ZeroPhase::apply`]), each cut to the samples `keep`: `[value, q̇, q̈][j]`.
+    /// With measured velocities `dq` (the same channels), q̇ is the filtered `dq` and q̈ its
+    /// derivative. By default all channels are filtered side by side
+    /// ([`ZeroPhase::apply_many`]) and differentiated by 5-point central differences
+    /// ([`central_uniform`]); a filter that differentiates by itself overrides this.
+    fn derivatives_many(
+        &self,
+        q: Vec<Vec<f64>>,
+        dq: Option<Vec<Vec<f64>>>,
+        dt: f64,
+        pad_left: bool,
+        pad_right: bool,
+        keep: Range<usize>,
+    ) -> [Vec<Vec<f64>>; 3] {
+        let cut = |x: Vec<f64>| x[keep.clone()].to_vec();
+        let dof = q.len();
+        let mut out = [(); 3].map(|_| Vec::with_capacity(dof));
+        // All channels in one side-by-side sweep.
+        let mut q = q;
+        let mut v = dq.unwrap_or_default();
+        let mut chans: Vec<&mut [f64]> = q
+            .iter_mut()
+            .chain(v.iter_mut())
+            .map(|c| c.as_mut_slice())
+            .collect();
+        self.apply_many(&mut chans, pad_left, pad_right);
+        for j in 0..dof {
+            let (d1, d2) = if v.is_empty() {
+                central_uniform(&q[j], dt)
+            } else {
+                let a = central_uniform(&v[j], dt).0;
+                (std::mem::take(&mut v[j]), a)
+            };
+            out[0].push(cut(std::mem::take(&mut q[j])));
+            out[1].push(cut(d1));
+            out[2].push(cut(d2));
+        }
+        out
+    }
 }
 
 /// Sum of sines with known derivatives, content up to 1.5 Hz: `(q, q̇, q̈)` at `t` (tests).

@@ -2,6 +2,7 @@
 //! long windows, fits at the ends).
 
 use std::f64::consts::PI;
+use std::ops::Range;
 
 use super::fft::fft;
 use super::{DerivativeError, ZeroPhase};
@@ -225,6 +226,34 @@ impl ZeroPhase for SavGol {
 
     fn reach(&self) -> usize {
         self.half + 1
+    }
+
+    /// The fit's own derivatives (in its own step; `dt` is not used), channel by channel.
+    fn derivatives_many(
+        &self,
+        q: Vec<Vec<f64>>,
+        dq: Option<Vec<Vec<f64>>>,
+        _dt: f64,
+        pad_left: bool,
+        pad_right: bool,
+        keep: Range<usize>,
+    ) -> [Vec<Vec<f64>>; 3] {
+        let cut = |x: Vec<f64>| x[keep.clone()].to_vec();
+        let mut out = [(); 3].map(|_| Vec::with_capacity(q.len()));
+        for (j, qj) in q.iter().enumerate() {
+            let [a, b, c] = self.derivatives_ends(qj, pad_left, pad_right);
+            let (b, c) = match &dq {
+                Some(d) => {
+                    let [v, acc, _] = self.derivatives_ends(&d[j], pad_left, pad_right);
+                    (v, acc)
+                }
+                None => (b, c),
+            };
+            out[0].push(cut(a));
+            out[1].push(cut(b));
+            out[2].push(cut(c));
+        }
+        out
     }
 
     fn gain(&self, f: f64) -> f64 {
