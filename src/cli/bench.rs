@@ -37,8 +37,10 @@ pub struct Args {
     pub svg: Option<PathBuf>,
 }
 
-pub fn run(args: &Args) -> Result<()> {
-    let arms: Vec<&'static dyn Model> = match &args.arm {
+/// The generated arms to measure: all, or the one named (an arm given only as a D-H table has no
+/// generated kernels to time: a clear error says how to generate them).
+pub(super) fn generated_arms(arm: Option<&str>) -> Result<Vec<&'static dyn Model>> {
+    Ok(match arm {
         None => crate::arms::all().to_vec(),
         Some(name) => match resolve(name)? {
             ArmSource::Generated(m) => vec![m],
@@ -50,7 +52,11 @@ pub fn run(args: &Args) -> Result<()> {
                 .into())
             }
         },
-    };
+    })
+}
+
+pub fn run(args: &Args) -> Result<()> {
+    let arms = generated_arms(args.arm.as_deref())?;
     if args.samples == 0 {
         return Err(InputError("--samples must be at least 1".into()).into());
     }

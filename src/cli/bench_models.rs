@@ -23,8 +23,7 @@ use std::path::PathBuf;
 
 use anyhow::Result;
 
-use super::{write_output, InputError};
-use crate::arms::{resolve, ArmSource};
+use super::write_output;
 use crate::bench::{plausible_params, Case, Kernel, Reference, Settings, POOL};
 use crate::dh::{DhTable, JointKind};
 use crate::model::Model;
@@ -99,19 +98,7 @@ fn write_numbers(w: &mut dyn std::io::Write, xs: &[f64]) -> std::io::Result<()> 
 }
 
 pub fn run(args: &Args) -> Result<()> {
-    let arms: Vec<&'static dyn Model> = match &args.arm {
-        None => crate::arms::all().to_vec(),
-        Some(name) => match resolve(name)? {
-            ArmSource::Generated(m) => vec![m],
-            ArmSource::Table(t) => {
-                return Err(InputError(format!(
-                    "{name}: `dynid bench` measures generated arms only — copy the table to arms/{}.toml and run `cargo build`",
-                    t.name
-                ))
-                .into())
-            }
-        },
-    };
+    let arms = super::bench::generated_arms(args.arm.as_deref())?;
     let dumps = arms.into_iter().map(dump).collect::<Result<Vec<_>>>()?;
     write_output(args.out.as_deref(), |w| write_dumps(w, &dumps))
 }
