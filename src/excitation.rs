@@ -25,7 +25,7 @@ use serde::{Deserialize, Serialize};
 use crate::model::Model;
 use crate::trajectory::fourier::{Fourier, FourierJoint};
 use crate::trajectory::logistic::{JointMotion, Logistic, LogisticJoint};
-use crate::trajectory::{sample, Trajectory, TrajectoryError};
+use crate::trajectory::{sample, Motion, TrajectoryError};
 
 /// Genetic-algorithm settings (defaults are the paper's).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]

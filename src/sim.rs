@@ -1,5 +1,5 @@
 //! Closed-loop simulation: a fixed-step RK4 plant driven by a [`Controller`] that tracks a
-//! [`Trajectory`].
+//! [`Motion`].
 //!
 //! The plant is the forward dynamics of any generated arm, `q̈ = (M(q) + Ia)⁻¹ (τ − h(q, q̇) − f(q̇))`,
 //! with optional unmodelled [`Effects`] (viscous and Coulomb friction, armature, offsets) so that
@@ -8,7 +8,7 @@
 //! is decimated to `log_every` steps.
 //!
 //! ```no_run
-//! # fn demo(model: &dyn dynid::model::Model, traj: &dyn dynid::trajectory::Trajectory, theta: &[f64]) {
+//! # fn demo(model: &dyn dynid::model::Model, traj: &dyn dynid::trajectory::Motion, theta: &[f64]) {
 //! use dynid::{control::Pd, sim::{Plant, SimConfig}};
 //! let plant = Plant::new(model, theta.to_vec(), None);
 //! let mut pd = Pd { kp: vec![200.0; 2], kd: vec![40.0; 2] };
@@ -21,7 +21,7 @@ use crate::cholesky::{cholesky, cholesky_solve};
 use crate::control::Controller;
 use crate::model::Model;
 use crate::params::Effects;
-use crate::trajectory::Trajectory;
+use crate::trajectory::Motion;
 
 /// Simulation failures.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -173,7 +173,7 @@ impl<'a> Plant<'a> {
 pub fn simulate(
     plant: &Plant,
     controller: &mut dyn Controller,
-    traj: &dyn Trajectory,
+    traj: &dyn Motion,
     cfg: &SimConfig,
 ) -> Result<SimLog, SimError> {
     let n = plant.model.dof();
@@ -187,7 +187,7 @@ pub fn simulate(
 pub fn simulate_from(
     plant: &Plant,
     controller: &mut dyn Controller,
-    traj: &dyn Trajectory,
+    traj: &dyn Motion,
     cfg: &SimConfig,
     q0: &[f64],
     dq0: &[f64],

@@ -6,7 +6,7 @@ use std::path::Path;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use super::noise::Estimator;
+use super::noise::Differentiator;
 use super::{PaperError, PaperResults, Traces};
 
 type Series = (String, Vec<(f64, f64)>, RGBColor);
@@ -342,7 +342,7 @@ pub fn write_all(dir: &Path, r: &PaperResults, tr: &Traces) -> Result<Vec<String
 
     // Noise study
     let nz = &r.noise;
-    let quant: Vec<Series> = Estimator::ALL
+    let quant: Vec<Series> = Differentiator::ALL
         .iter()
         .enumerate()
         .map(|(i, &e)| {
@@ -360,7 +360,7 @@ pub fn write_all(dir: &Path, r: &PaperResults, tr: &Traces) -> Result<Vec<String
             (e.label().to_string(), pts, COLORS[i])
         })
         .collect();
-    let torque: Vec<Series> = Estimator::ALL
+    let torque: Vec<Series> = Differentiator::ALL
         .iter()
         .enumerate()
         .map(|(i, &e)| {

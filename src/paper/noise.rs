@@ -26,7 +26,7 @@ use crate::trajectory::logistic::LogisticJoint;
 /// The derivative estimators compared.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
-pub enum Estimator {
+pub enum Differentiator {
     /// Eq. 15 applied to the measured position.
     LogisticAnalytic,
     /// 5-point central differences of the raw samples.
@@ -40,8 +40,8 @@ pub enum Estimator {
     ReferenceCorrected,
 }
 
-impl Estimator {
-    pub const ALL: [Estimator; 5] = [
+impl Differentiator {
+    pub const ALL: [Differentiator; 5] = [
         Self::LogisticAnalytic,
         Self::CentralDifferences,
         Self::LowpassDifferences,
@@ -90,7 +90,7 @@ pub struct NoiseConfig {
 pub struct Cell {
     pub quant_bits: Option<u32>,
     pub torque_pct: f64,
-    pub estimator: Estimator,
+    pub estimator: Differentiator,
     pub mean: f64,
     pub std: f64,
     /// Runs whose least squares failed (counted, not averaged).
@@ -106,7 +106,7 @@ pub struct NoiseStudy {
 
 impl NoiseStudy {
     /// The cell for a level and estimator.
-    pub fn cell(&self, bits: Option<u32>, pct: f64, e: Estimator) -> Option<&Cell> {
+    pub fn cell(&self, bits: Option<u32>, pct: f64, e: Differentiator) -> Option<&Cell> {
         self.cells
             .iter()
             .find(|c| c.quant_bits == bits && c.torque_pct == pct && c.estimator == e)
@@ -123,7 +123,7 @@ fn gauss(rng: &mut ChaCha8Rng) -> f64 {
 
 /// Derivatives of the moving joint `j` of a step with estimator `e` (resting joints: zero).
 fn derivatives(
-    e: Estimator,
+    e: Differentiator,
     d: &StepData,
     dof: usize,
     q: &[f64],
@@ -134,21 +134,21 @@ fn derivatives(
     let (mut dq, mut ddq) = (vec![0.0; n * dof], vec![0.0; n * dof]);
     let x: Vec<f64> = (0..n).map(|k| q[k * dof + j]).collect();
     let (v, a) = match e {
-        Estimator::LogisticAnalytic => {
+        Differentiator::LogisticAnalytic => {
             d.t.iter()
                 .zip(&x)
                 .map(|(&t, &qk)| d.joint.derivatives_from_position(t, qk))
                 .unzip()
         }
-        Estimator::CentralDifferences => central_uniform(&x, d.ts),
-        Estimator::LowpassDifferences => {
+        Differentiator::CentralDifferences => central_uniform(&x, d.ts),
+        Differentiator::LowpassDifferences => {
             let mut y = x.clone();
             if let Ok(f) = Butterworth::lowpass(4, lowpass_hz, 1.0 / d.ts) {
                 f.filtfilt(&mut y);
             }
             central_uniform(&y, d.ts)
         }
-        Estimator::FourierFit => {
+        Differentiator::FourierFit => {
             // the log is closed ([0, T]); the fit wants exactly one period
             let m = n - 1;
             let wf = std::f64::consts::TAU / d.joint.period;
@@ -165,7 +165,7 @@ fn derivatives(
                 Err(_) => (vec![f64::NAN; n], vec![f64::NAN; n]),
             }
         }
-        Estimator::ReferenceCorrected => {
+        Differentiator::ReferenceCorrected => {
             let desired: Vec<(f64, f64, f64)> = d.t.iter().map(|&t| d.joint.eval(t)).collect();
             let mut err: Vec<f64> = desired.iter().zip(&x).map(|(r, &qk)| r.0 - qk).collect();
             if let Ok(f) = Butterworth::lowpass(4, lowpass_hz, 1.0 / d.ts) {
@@ -191,7 +191,7 @@ pub fn identify_with(
     steps: &[StepData],
     q: &[Vec<f64>],
     tau: &[Vec<f64>],
-    e: Estimator,
+    e: Differentiator,
     lowpass_hz: f64,
 ) -> Option<Vec<f64>> {
     let dof = model.dof();
@@ -273,14 +273,14 @@ pub fn run(
                     tau.push(ts);
                 }
                 let mut out = [None; 5];
-                for (i, e) in Estimator::ALL.iter().enumerate() {
+                for (i, e) in Differentiator::ALL.iter().enumerate() {
                     out[i] = identify_with(model, steps, &q, &tau, *e, cfg.lowpass_hz)
                         .map(|th| max_abs_diff(&th, theta_true));
                 }
                 out
             })
             .collect();
-        for (i, e) in Estimator::ALL.iter().enumerate() {
+        for (i, e) in Differentiator::ALL.iter().enumerate() {
             let ok: Vec<f64> = errors.iter().filter_map(|r| r[i]).collect();
             let n = ok.len().max(1) as f64;
             let mean = ok.iter().sum::<f64>() / n;

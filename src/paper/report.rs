@@ -5,7 +5,7 @@
 use std::fmt::Write;
 
 use super::ident::max_abs_diff;
-use super::noise::Estimator;
+use super::noise::Differentiator;
 use super::{PaperResults, PAPER_ITER3, PAPER_TABLE3, PAPER_TABLE6, PAPER_TRACKING};
 
 fn f(x: f64) -> String {
@@ -329,14 +329,14 @@ fn write_report(s: &mut String, r: &PaperResults, figures: &[String]) -> std::fm
         |s: &mut String, title: &str, rows: Vec<(String, Option<u32>, f64)>| -> std::fmt::Result {
             writeln!(s, "{title}\n")?;
             write!(s, "| level |")?;
-            for e in Estimator::ALL {
+            for e in Differentiator::ALL {
                 write!(s, " {} |", e.label())?;
             }
             writeln!(s)?;
-            writeln!(s, "|---|{}", "---|".repeat(Estimator::ALL.len()))?;
+            writeln!(s, "|---|{}", "---|".repeat(Differentiator::ALL.len()))?;
             for (label, b, p) in rows {
                 write!(s, "| {label} |")?;
-                for e in Estimator::ALL {
+                for e in Differentiator::ALL {
                     match nz.cell(b, p, e) {
                         Some(c) => write!(
                             s,
@@ -483,12 +483,12 @@ fn verdict(r: &PaperResults) -> Vec<String> {
     ));
     let nz = &r.noise;
     let cmp = |b: Option<u32>, p: f64| -> Option<(f64, f64, &'static str)> {
-        let a = nz.cell(b, p, Estimator::LogisticAnalytic)?.mean;
+        let a = nz.cell(b, p, Differentiator::LogisticAnalytic)?.mean;
         let (best, name) = [
-            Estimator::CentralDifferences,
-            Estimator::LowpassDifferences,
-            Estimator::FourierFit,
-            Estimator::ReferenceCorrected,
+            Differentiator::CentralDifferences,
+            Differentiator::LowpassDifferences,
+            Differentiator::FourierFit,
+            Differentiator::ReferenceCorrected,
         ]
         .iter()
         .filter_map(|&e| nz.cell(b, p, e).map(|c| (c.mean, e.label())))

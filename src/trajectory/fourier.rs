@@ -16,7 +16,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::{Trajectory, TrajectoryError};
+use super::{Motion, TrajectoryError};
 
 /// One joint's Fourier series.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -85,7 +85,7 @@ pub struct Fourier {
     pub periods: usize,
 }
 
-impl Trajectory for Fourier {
+impl Motion for Fourier {
     fn dof(&self) -> usize {
         self.joints.len()
     }

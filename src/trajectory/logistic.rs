@@ -31,7 +31,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::{Trajectory, TrajectoryError};
+use super::{Motion, TrajectoryError};
 
 /// Largest value of `s(1-s)(1-2s)` over `s ∈ (0, 1)`, reached at `s = (1 - 1/√3)/2`: `1/(6√3)`.
 pub const PEAK_ACCEL_FACTOR: f64 = 0.096_225_044_864_937_63;
@@ -175,7 +175,7 @@ impl Logistic {
     }
 }
 
-impl Trajectory for Logistic {
+impl Motion for Logistic {
     fn dof(&self) -> usize {
         self.joints.len()
     }

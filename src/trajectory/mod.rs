@@ -3,7 +3,7 @@
 //! derivatives.
 //!
 //! ```
-//! use dynid::trajectory::{Sine, Trajectory};
+//! use dynid::trajectory::{Sine, Motion};
 //! // the paper's validation motion q1 = sin t, q2 = sin(−t)
 //! let v = Sine { amplitude: vec![1.0, -1.0], omega: vec![1.0, 1.0], offset: vec![0.0, 0.0], duration: 10.0 };
 //! let (mut q, mut dq, mut ddq) = ([0.0; 2], [0.0; 2], [0.0; 2]);
@@ -24,7 +24,7 @@ pub enum TrajectoryError {
 }
 
 /// A desired joint motion with analytic derivatives.
-pub trait Trajectory: Send + Sync {
+pub trait Motion: Send + Sync {
     /// Number of joints.
     fn dof(&self) -> usize;
     /// Length of the motion in seconds (it starts at `t = 0`).
@@ -42,7 +42,7 @@ pub struct Sine {
     pub duration: f64,
 }
 
-impl Trajectory for Sine {
+impl Motion for Sine {
     fn dof(&self) -> usize {
         self.amplitude.len()
     }
@@ -148,7 +148,7 @@ impl TrajectorySpec {
     }
 
     /// The trajectory as a trait object.
-    pub fn as_dyn(&self) -> &dyn Trajectory {
+    pub fn as_dyn(&self) -> &dyn Motion {
         match self {
             Self::Logistic(l) => l,
             Self::Fourier(f) => f,
@@ -168,7 +168,7 @@ pub struct Samples {
 }
 
 /// Samples `traj` every `dt` seconds over `[0, duration)` (or `[0, duration]` with `closed`).
-pub fn sample(traj: &dyn Trajectory, dt: f64, closed: bool) -> Samples {
+pub fn sample(traj: &dyn Motion, dt: f64, closed: bool) -> Samples {
     let dof = traj.dof();
     let steps = (traj.duration() / dt).round() as usize;
     let n = if closed { steps + 1 } else { steps };

@@ -12,7 +12,7 @@ use dynid::paper::ident::{step_ls, Signals};
 use dynid::paper::{iterate, logistic_problem, IterEstimator, Law, PaperConfig, PAPER_TABLE3};
 use dynid::sim::{simulate, simulate_from, Plant, SimConfig, SimError};
 use dynid::trajectory::logistic::{JointMotion, Logistic, LogisticJoint};
-use dynid::trajectory::{sample, Trajectory};
+use dynid::trajectory::{sample, Motion};
 use indicatif::ProgressBar;
 use rand::Rng;
 
