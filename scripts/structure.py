@@ -5,7 +5,9 @@
 - no cycle between the top-level modules of src/ (`crate::a` naming `crate::b` in either direction,
   counting every `crate::x` path in code, not in comments).
 
-    python3 scripts/structure.py          # exit 1 and a list when a rule is broken
+    python3 scripts/structure.py                   # exit 1 and a list when a rule is broken
+    python3 scripts/structure.py --warn-functions  # long functions listed, not counted (CI, until
+                                                   # the last ones are split: see docs/ARCHITECTURE.md)
 
 Brace counting is enough for this code base: string literals with unbalanced braces are not used in
 function bodies that matter here, and a miscount shows up as an absurd length that one would look at.
@@ -75,7 +77,9 @@ def long_functions(path: Path, lines: list[str]) -> list[str]:
 
 
 def main() -> int:
+    warn_functions = "--warn-functions" in sys.argv[1:]
     problems: list[str] = []
+    warnings: list[str] = []
     edges: dict[str, set[str]] = {}
     for path in sorted(SRC.rglob("*.rs")):
         text = path.read_text(encoding="utf-8")
@@ -83,7 +87,7 @@ def main() -> int:
         rel = path.relative_to(SRC.parent)
         if len(lines) > MAX_FILE and not is_test_file(path):
             problems.append(f"{rel}: {len(lines)} lines (max {MAX_FILE})")
-        problems += long_functions(path, lines)
+        (warnings if warn_functions else problems).extend(long_functions(path, lines))
         me = top_module(path)
         for line in lines:
             for other in CRATE.findall(strip_comment(line)):
@@ -107,6 +111,8 @@ def main() -> int:
     for m in sorted(edges):
         if m not in state:
             visit(m)
+    for w in warnings:
+        print(f"warning: {w}")
     for p in problems:
         print(p)
     print(f"structure: {len(problems)} problem(s) in {SRC}")
