@@ -183,15 +183,14 @@ pub fn simulate(
     simulate_from(plant, controller, traj, cfg, &q0, &vec![0.0; n])
 }
 
-/// Runs `controller` on `plant` along `traj` from the state `(q0, dq0)`.
-pub fn simulate_from(
+/// Checks the inputs of [`simulate_from`] and returns the number of steps.
+fn checked_steps(
     plant: &Plant,
-    controller: &mut dyn Controller,
     traj: &dyn Motion,
     cfg: &SimConfig,
     q0: &[f64],
     dq0: &[f64],
-) -> Result<SimLog, SimError> {
+) -> Result<usize, SimError> {
     let n = plant.model.dof();
     if traj.dof() != n || q0.len() != n || dq0.len() != n || plant.theta.len() != plant.model.nb() {
         return Err(SimError::Invalid(format!(
@@ -226,24 +225,109 @@ pub fn simulate_from(
             steps / cfg.log_every
         )));
     }
-    let cap = steps / cfg.log_every + 1;
-    let mut log = SimLog {
-        dof: n,
-        ..Default::default()
-    };
-    for v in [
-        &mut log.q,
-        &mut log.dq,
-        &mut log.ddq,
-        &mut log.tau,
-        &mut log.qd,
-        &mut log.dqd,
-        &mut log.ddqd,
-    ] {
-        v.reserve(cap * n);
-    }
-    log.t.reserve(cap);
+    Ok(steps)
+}
 
+impl SimLog {
+    /// An empty log of an `n`-joint arm with room for `cap` samples.
+    fn with_capacity(n: usize, cap: usize) -> Self {
+        let mut log = SimLog {
+            dof: n,
+            ..Default::default()
+        };
+        for v in [
+            &mut log.q,
+            &mut log.dq,
+            &mut log.ddq,
+            &mut log.tau,
+            &mut log.qd,
+            &mut log.dqd,
+            &mut log.ddqd,
+        ] {
+            v.reserve(cap * n);
+        }
+        log.t.reserve(cap);
+        log
+    }
+}
+
+/// Classical RK4 on x = (q, q̇) with τ held over the step: the four stages' (q̇, q̈) and the
+/// intermediate state, allocated once.
+struct Rk4 {
+    k: [[Vec<f64>; 2]; 4],
+    qs: Vec<f64>,
+    dqs: Vec<f64>,
+}
+
+impl Rk4 {
+    fn new(n: usize) -> Self {
+        let z = || vec![0.0; n];
+        Rk4 {
+            k: [[z(), z()], [z(), z()], [z(), z()], [z(), z()]],
+            qs: z(),
+            dqs: z(),
+        }
+    }
+
+    /// Advances `(q, dq)` by `h` from the acceleration `acc` at the start; false when the mass
+    /// matrix is singular at a stage.
+    #[allow(clippy::too_many_arguments)]
+    fn step(
+        &mut self,
+        plant: &Plant,
+        q: &mut [f64],
+        dq: &mut [f64],
+        acc: &[f64],
+        tau: &[f64],
+        h: f64,
+        w: &mut Work,
+    ) -> bool {
+        let n = q.len();
+        let [[k1v, k1a], [k2v, k2a], [k3v, k3a], [k4v, k4a]] = &mut self.k;
+        let (qs, dqs) = (&mut self.qs, &mut self.dqs);
+        k1v.copy_from_slice(dq);
+        k1a.copy_from_slice(acc);
+        for j in 0..n {
+            qs[j] = q[j] + 0.5 * h * k1v[j];
+            dqs[j] = dq[j] + 0.5 * h * k1a[j];
+        }
+        k2v.copy_from_slice(dqs);
+        let ok2 = plant.accel(qs, dqs, tau, k2a, w);
+        for j in 0..n {
+            qs[j] = q[j] + 0.5 * h * k2v[j];
+            dqs[j] = dq[j] + 0.5 * h * k2a[j];
+        }
+        k3v.copy_from_slice(dqs);
+        let ok3 = plant.accel(qs, dqs, tau, k3a, w);
+        for j in 0..n {
+            qs[j] = q[j] + h * k3v[j];
+            dqs[j] = dq[j] + h * k3a[j];
+        }
+        k4v.copy_from_slice(dqs);
+        let ok4 = plant.accel(qs, dqs, tau, k4a, w);
+        if !(ok2 && ok3 && ok4) {
+            return false;
+        }
+        for j in 0..n {
+            q[j] += h / 6.0 * (k1v[j] + 2.0 * k2v[j] + 2.0 * k3v[j] + k4v[j]);
+            dq[j] += h / 6.0 * (k1a[j] + 2.0 * k2a[j] + 2.0 * k3a[j] + k4a[j]);
+        }
+        true
+    }
+}
+
+/// Runs `controller` on `plant` along `traj` from the state `(q0, dq0)`.
+pub fn simulate_from(
+    plant: &Plant,
+    controller: &mut dyn Controller,
+    traj: &dyn Motion,
+    cfg: &SimConfig,
+    q0: &[f64],
+    dq0: &[f64],
+) -> Result<SimLog, SimError> {
+    let n = plant.model.dof();
+    let steps = checked_steps(plant, traj, cfg, q0, dq0)?;
+    let mut log = SimLog::with_capacity(n, steps / cfg.log_every + 1);
     let mut w = Work {
         m: vec![0.0; n * n],
         h: vec![0.0; n],
@@ -252,12 +336,7 @@ pub fn simulate_from(
     let (mut qd, mut dqd, mut ddqd) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
     let mut tau = vec![0.0; n];
     let mut acc = vec![0.0; n];
-    // RK4 stages: k = (dq, ddq) at four points
-    let (mut k1v, mut k1a) = (vec![0.0; n], vec![0.0; n]);
-    let (mut k2v, mut k2a) = (vec![0.0; n], vec![0.0; n]);
-    let (mut k3v, mut k3a) = (vec![0.0; n], vec![0.0; n]);
-    let (mut k4v, mut k4a) = (vec![0.0; n], vec![0.0; n]);
-    let (mut qs, mut dqs) = (vec![0.0; n], vec![0.0; n]);
+    let mut rk4 = Rk4::new(n);
     let h = cfg.dt;
 
     for step in 0..=steps {
@@ -280,33 +359,8 @@ pub fn simulate_from(
         if step == steps {
             break;
         }
-        // Classical RK4 on x = (q, q̇) with τ held over the step.
-        k1v.copy_from_slice(&dq);
-        k1a.copy_from_slice(&acc);
-        for j in 0..n {
-            qs[j] = q[j] + 0.5 * h * k1v[j];
-            dqs[j] = dq[j] + 0.5 * h * k1a[j];
-        }
-        k2v.copy_from_slice(&dqs);
-        let ok2 = plant.accel(&qs, &dqs, &tau, &mut k2a, &mut w);
-        for j in 0..n {
-            qs[j] = q[j] + 0.5 * h * k2v[j];
-            dqs[j] = dq[j] + 0.5 * h * k2a[j];
-        }
-        k3v.copy_from_slice(&dqs);
-        let ok3 = plant.accel(&qs, &dqs, &tau, &mut k3a, &mut w);
-        for j in 0..n {
-            qs[j] = q[j] + h * k3v[j];
-            dqs[j] = dq[j] + h * k3a[j];
-        }
-        k4v.copy_from_slice(&dqs);
-        let ok4 = plant.accel(&qs, &dqs, &tau, &mut k4a, &mut w);
-        if !(ok2 && ok3 && ok4) {
+        if !rk4.step(plant, &mut q, &mut dq, &acc, &tau, h, &mut w) {
             return Err(SimError::SingularMass { t });
-        }
-        for j in 0..n {
-            q[j] += h / 6.0 * (k1v[j] + 2.0 * k2v[j] + 2.0 * k3v[j] + k4v[j]);
-            dq[j] += h / 6.0 * (k1a[j] + 2.0 * k2a[j] + 2.0 * k3a[j] + k4a[j]);
         }
         let bad = q.iter().chain(&dq).any(|x| !x.is_finite())
             || q.iter().any(|x| x.abs() > cfg.divergence_limit);
