@@ -83,17 +83,8 @@ fn base_params(model: &dyn crate::model::Model, params: &InertialParams) -> Vec<
     theta
 }
 
-pub fn run(args: &Args) -> Result<()> {
-    let model =
-        match resolve(&args.arm)? {
-            ArmSource::Generated(m) => m,
-            ArmSource::Table(_) => return Err(InputError(
-                "simulate needs a generated arm (a name from `dynid arms`), not a D-H table path"
-                    .into(),
-            )
-            .into()),
-        };
-    let n = model.dof();
+/// Numeric options that clap cannot check by type.
+fn check_numbers(args: &Args) -> Result<()> {
     if args.dt <= 0.0 || !args.dt.is_finite() || args.log_every == 0 {
         return Err(InputError(format!(
             "--dt must be > 0 and --log-every ≥ 1 (got {}, {})",
@@ -116,21 +107,11 @@ pub fn run(args: &Args) -> Result<()> {
             .into());
         }
     }
-    let opts = ParamsOptions::default();
-    let truth = InertialParams::from_path(&args.params, n, &opts)?;
-    let estimate = match &args.estimate {
-        Some(p) => base_params(
-            model,
-            &InertialParams::from_path(
-                p,
-                n,
-                &ParamsOptions {
-                    allow_nonphysical: true,
-                },
-            )?,
-        ),
-        None => base_params(model, &truth),
-    };
+    Ok(())
+}
+
+/// The trajectory file: the output of `dynid excite` or a bare trajectory spec, for `n` joints.
+fn read_trajectory(args: &Args, n: usize, arm: &str) -> Result<TrajectorySpec> {
     let text = std::fs::read_to_string(&args.trajectory)
         .with_context(|| format!("{}: cannot read the trajectory", args.trajectory.display()))?;
     let value: serde_json::Value = serde_json::from_str(&text)
@@ -144,15 +125,24 @@ pub fn run(args: &Args) -> Result<()> {
     })?;
     spec.validate()
         .map_err(|e| InputError(format!("{}: {e}", args.trajectory.display())))?;
-    let traj = spec.as_dyn();
-    if traj.dof() != n {
+    if spec.as_dyn().dof() != n {
         return Err(InputError(format!(
-            "the trajectory has {} joints, arm {} has {n}",
-            traj.dof(),
-            model.name()
+            "the trajectory has {} joints, arm {arm} has {n}",
+            spec.as_dyn().dof()
         ))
         .into());
     }
+    Ok(spec)
+}
+
+/// The chosen controller with its gains (the paper's for a 2-joint arm, 4 otherwise, unless
+/// given), built on the model's `estimate` of the base parameters.
+fn controller(
+    args: &Args,
+    model: &'static dyn crate::model::Model,
+    estimate: Vec<f64>,
+) -> Result<Box<dyn Controller>> {
+    let n = model.dof();
     let paper = RhftcGains::paper();
     let default_kp = if n == 2 {
         paper.kp.clone()
@@ -178,7 +168,7 @@ pub fn run(args: &Args) -> Result<()> {
         kp: vec![100.0; n],
         kd: vec![20.0; n],
     };
-    let mut controller: Box<dyn Controller> = match args.controller {
+    Ok(match args.controller {
         ControllerKind::Rhftc => Box::new(Rhftc::new(
             model,
             estimate,
@@ -187,43 +177,27 @@ pub fn run(args: &Args) -> Result<()> {
         )),
         ControllerKind::Ctc => Box::new(Ctc::new(model, estimate, kp, kd, fallback)),
         ControllerKind::Pd => Box::new(Pd { kp, kd }),
-    };
-    let effects = (!truth.effects.is_empty()).then(|| truth.effects.clone());
-    let plant = Plant::new(model, base_params(model, &truth), effects);
-    let cfg = SimConfig {
-        dt: args.dt,
-        log_every: args.log_every,
-        ..SimConfig::default()
-    };
-    let mut log = simulate(&plant, controller.as_mut(), traj, &cfg)?;
+    })
+}
+
+/// One encoder count per joint: 2π/counts rad for a revolute joint, 1/counts m for a prismatic.
+fn encoder_resolution(model: &dyn crate::model::Model, counts: f64) -> Result<Vec<f64>> {
     let table = crate::dh::DhTable::from_str(model.arm_toml(), model.name())?;
-    let revolute: Vec<bool> = table
+    Ok(table
         .joints
         .iter()
-        .map(|j| j.kind == crate::dh::JointKind::Revolute)
-        .collect();
-    let resolution: Option<Vec<f64>> = args.encoder_counts.map(|counts| {
-        revolute
-            .iter()
-            .map(|&r| {
-                if r {
-                    std::f64::consts::TAU / counts
-                } else {
-                    1.0 / counts
-                }
-            })
-            .collect()
-    });
-    let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(args.seed);
-    crate::measurement::add_measurement_noise(
-        n,
-        &mut log.q,
-        &mut log.tau,
-        args.tau_noise,
-        resolution.as_deref(),
-        &mut rng,
-    );
+        .map(|j| {
+            if j.kind == crate::dh::JointKind::Revolute {
+                std::f64::consts::TAU / counts
+            } else {
+                1.0 / counts
+            }
+        })
+        .collect())
+}
 
+/// The log as CSV: `t`, `q`, then (unless `--positions-only`) `dq`, `ddq`, then `tau`.
+fn write_log(args: &Args, log: &crate::sim::SimLog, n: usize) -> Result<()> {
     let signals: Vec<(&str, &[f64])> = if args.positions_only {
         vec![("q", &log.q), ("tau", &log.tau)]
     } else {
@@ -250,4 +224,57 @@ pub fn run(args: &Args) -> Result<()> {
         }
         Ok(())
     })
+}
+
+pub fn run(args: &Args) -> Result<()> {
+    let model =
+        match resolve(&args.arm)? {
+            ArmSource::Generated(m) => m,
+            ArmSource::Table(_) => return Err(InputError(
+                "simulate needs a generated arm (a name from `dynid arms`), not a D-H table path"
+                    .into(),
+            )
+            .into()),
+        };
+    let n = model.dof();
+    check_numbers(args)?;
+    let opts = ParamsOptions::default();
+    let truth = InertialParams::from_path(&args.params, n, &opts)?;
+    let estimate = match &args.estimate {
+        Some(p) => base_params(
+            model,
+            &InertialParams::from_path(
+                p,
+                n,
+                &ParamsOptions {
+                    allow_nonphysical: true,
+                },
+            )?,
+        ),
+        None => base_params(model, &truth),
+    };
+    let spec = read_trajectory(args, n, model.name())?;
+    let mut controller = controller(args, model, estimate)?;
+    let effects = (!truth.effects.is_empty()).then(|| truth.effects.clone());
+    let plant = Plant::new(model, base_params(model, &truth), effects);
+    let cfg = SimConfig {
+        dt: args.dt,
+        log_every: args.log_every,
+        ..SimConfig::default()
+    };
+    let mut log = simulate(&plant, controller.as_mut(), spec.as_dyn(), &cfg)?;
+    let resolution = match args.encoder_counts {
+        Some(counts) => Some(encoder_resolution(model, counts)?),
+        None => None,
+    };
+    let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(args.seed);
+    crate::measurement::add_measurement_noise(
+        n,
+        &mut log.q,
+        &mut log.tau,
+        args.tau_noise,
+        resolution.as_deref(),
+        &mut rng,
+    );
+    write_log(args, &log, n)
 }
