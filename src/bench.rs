@@ -409,6 +409,11 @@ impl Case {
         &self.pool
     }
 
+    /// The full inertial parameters the kernels are evaluated with.
+    pub fn params(&self) -> &[f64] {
+        &self.p
+    }
+
     /// Output length of `kernel`.
     pub fn out_len(&self, kernel: Kernel) -> usize {
         kernel.out_len(self.arm.dof(), self.arm.np(), self.arm.nb())

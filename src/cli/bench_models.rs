@@ -24,7 +24,7 @@ use std::path::PathBuf;
 use anyhow::Result;
 
 use super::write_output;
-use crate::bench::{plausible_params, Case, Kernel, Reference, Settings, POOL};
+use crate::bench::{Case, Kernel, Settings, POOL};
 use crate::dh::{DhTable, JointKind};
 use crate::model::Model;
 
@@ -38,9 +38,6 @@ pub struct Args {
     pub out: Option<PathBuf>,
 }
 
-/// The seed `Case::new` draws the parameters with (checked against the case on every sample).
-const PARAMS_SEED: u64 = 7;
-
 struct Dump {
     table: DhTable,
     params: Vec<f64>,
@@ -52,39 +49,22 @@ fn dump(arm: &'static dyn Model) -> Result<Dump> {
     let table = DhTable::from_str(arm.arm_toml(), &format!("arms/{}.toml", arm.name()))?;
     let case = Case::new(arm);
     let n = arm.dof();
-    let params = plausible_params(n, PARAMS_SEED);
-    let mut reference = Reference::new(arm)?;
-    let (mut tau, mut from_case, mut from_params) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
     let pool = case.pool();
-    let mut samples = Vec::with_capacity(POOL);
-    for k in 0..POOL {
-        case.call_generated(Kernel::InverseDynamics, k, &mut tau);
-        // The bench's own parameters are private to `Case`: the reference dynamics with ours must
-        // give its reference torques bit for bit, or the seed moved and the dump would lie.
-        case.call_reference(&mut reference, Kernel::InverseDynamics, k, &mut from_case);
-        reference.inverse_dynamics(
-            pool.q(k),
-            pool.dq(k),
-            pool.ddq(k),
-            &params,
-            &mut from_params,
-        );
-        if from_case != from_params {
-            anyhow::bail!(
-                "{}: the inertial parameters of `dynid bench` are no longer plausible_params(dof, {PARAMS_SEED}) — update src/cli/bench_models.rs to follow src/bench.rs",
-                arm.name()
-            );
-        }
-        samples.push([
-            pool.q(k).to_vec(),
-            pool.dq(k).to_vec(),
-            pool.ddq(k).to_vec(),
-            tau.clone(),
-        ]);
-    }
+    let mut tau = vec![0.0; n];
+    let samples = (0..POOL)
+        .map(|k| {
+            case.call_generated(Kernel::InverseDynamics, k, &mut tau);
+            [
+                pool.q(k).to_vec(),
+                pool.dq(k).to_vec(),
+                pool.ddq(k).to_vec(),
+                tau.clone(),
+            ]
+        })
+        .collect();
     Ok(Dump {
         table,
-        params,
+        params: case.params().to_vec(),
         samples,
     })
 }
