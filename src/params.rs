@@ -35,6 +35,7 @@ use std::path::Path;
 use nalgebra::{Matrix3, SymmetricEigen};
 
 use crate::diag::{did_you_mean, list, Location, TomlProblem};
+use crate::effects::{self, Effect, Scales};
 use crate::tomlread::{Fail, Src, TableView};
 
 /// Names of the per-joint effects an `[effects]` table may hold.
@@ -114,40 +115,38 @@ impl Effects {
     }
 
     /// Joint `j`'s torque with load-dependent friction, from `u` (rigid body + other effects):
-    /// `u + μ·sign(q̇)·|u|`.
+    /// `u + μ·sign(q̇)·|u|` ([`effects::load`]).
     pub fn load(&self, j: usize, dq: f64, u: f64) -> f64 {
         let mu = self.loadcoulomb.as_ref().map_or(0.0, |v| v[j]);
-        u + mu * sign(dq) * u.abs()
+        effects::load(mu, dq, u, &Scales::EXACT)
     }
 
-    /// The inverse of [`Effects::load`]: the `u` a joint torque `tau` leaves for the rigid body
-    /// and the other effects, `tau / (1 + μ·sign(q̇)·sign(tau))` (u and tau share their sign
-    /// for μ < 1).
+    /// The inverse of [`Effects::load`] ([`effects::unload`]).
     pub fn unload(&self, j: usize, dq: f64, tau: f64) -> f64 {
         let mu = self.loadcoulomb.as_ref().map_or(0.0, |v| v[j]);
-        tau / (1.0 + mu * sign(dq) * sign(tau))
+        effects::unload(mu, dq, tau)
+    }
+
+    /// The additive effects and their coefficients, in summation order.
+    fn additive(&self) -> [(Effect, &Option<Vec<f64>>); 5] {
+        [
+            (Effect::Viscous, &self.viscous),
+            (Effect::Coulomb, &self.coulomb),
+            (Effect::Armature, &self.armature),
+            (Effect::Offset, &self.offset),
+            (Effect::Spring, &self.spring),
+        ]
     }
 
     /// Torque of the additive effects at joint `j` for position `q`, velocity `dq` and
-    /// acceleration `ddq` (all but [`Effects::loadcoulomb`], see [`Effects::load`]).
+    /// acceleration `ddq` (all but [`Effects::loadcoulomb`], see [`Effects::load`]): each
+    /// effect's [`Effect::column`] with an exact sign.
     pub fn torque(&self, j: usize, q: f64, dq: f64, ddq: f64) -> f64 {
-        let get = |v: &Option<Vec<f64>>| v.as_ref().map_or(0.0, |v| v[j]);
-        get(&self.viscous) * dq
-            + get(&self.coulomb) * sign(dq)
-            + get(&self.armature) * ddq
-            + get(&self.offset)
-            + get(&self.spring) * q
-    }
-}
-
-/// `sign(x)` with `sign(0) = 0`.
-pub fn sign(x: f64) -> f64 {
-    if x > 0.0 {
-        1.0
-    } else if x < 0.0 {
-        -1.0
-    } else {
-        0.0
+        let mut terms = self.additive().into_iter().map(|(e, c)| {
+            c.as_ref().map_or(0.0, |v| v[j]) * e.column(q, dq, ddq, 0.0, &Scales::EXACT)
+        });
+        let first = terms.next().unwrap_or(0.0);
+        terms.fold(first, |sum, t| sum + t)
     }
 }
 

@@ -21,9 +21,8 @@ use rand_chacha::ChaCha8Rng;
 
 use crate::data::Trajectory;
 use crate::dh::{DhTable, JointKind};
-use crate::effects::{Effect, Term};
+use crate::effects::{self, Effect, Scales, Term};
 use crate::measurement::add_measurement_noise;
-use crate::params::sign;
 use crate::reference::RefModel;
 
 /// What to simulate.
@@ -216,26 +215,15 @@ pub fn generate(spec: &Spec) -> Trajectory {
         // (rigid body + other effects), as `dynid simulate` does.
         for (term, v) in &spec.effects {
             let j = term.joint;
-            let col = match term.effect {
-                Effect::LoadCoulomb => continue,
-                Effect::Coulomb => sign(dqs[j]),
-                Effect::Stribeck => dqs[j].signum() * (-(dqs[j] / 0.1).powi(2)).exp(),
-                e => e.column(
-                    qs[j],
-                    dqs[j],
-                    ddqs[j],
-                    0.0,
-                    &crate::effects::Scales {
-                        coulomb_v: 1.0,
-                        stribeck_v: 1.0,
-                    },
-                ),
-            };
-            ts[j] += v * col;
+            if !term.effect.needs_load() {
+                ts[j] += v * term
+                    .effect
+                    .column(qs[j], dqs[j], ddqs[j], 0.0, &Scales::EXACT);
+            }
         }
         for (term, v) in spec.effects.iter().filter(|(t, _)| t.effect.needs_load()) {
             let j = term.joint;
-            ts[j] += v * sign(dqs[j]) * ts[j].abs();
+            ts[j] = effects::load(*v, dqs[j], ts[j], &Scales::EXACT);
         }
         q.extend_from_slice(&qs);
         dq.extend_from_slice(&dqs);

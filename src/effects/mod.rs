@@ -19,7 +19,8 @@
 //! Asymmetric Coulomb friction (`Fc⁺` for q̇ > 0, `Fc⁻` for q̇ < 0) is `coulomb` + `offset` in
 //! disguise: `Fc⁺·[q̇>0] − Fc⁻·[q̇<0] = ½(Fc⁺+Fc⁻)·sgn q̇ + ½(Fc⁺−Fc⁻)`, so the report derives it
 //! when both are found instead of adding a redundant column. More effects: add a variant, its
-//! column in [`Effect::column`] and its name.
+//! column in [`Effect::column`] (`column.rs`: the one implementation of its physics, used by
+//! identification, simulation and synthetic data) and its name.
 //!
 //! **Identifiability.** An effect column that lies in the span of the base regressor for *every*
 //! motion is merged with rigid-body parameters and never reported as found: the armature of a
@@ -28,6 +29,16 @@
 //! are collinear only in the given data are skipped with a note.
 
 use serde::Serialize;
+
+mod column;
+mod load;
+mod merges;
+#[cfg(test)]
+mod tests;
+
+pub use column::{sign, Scales};
+pub use load::{load, unload};
+pub use merges::structural_merges;
 
 /// One kind of effect (one column per joint).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
@@ -93,45 +104,6 @@ impl Effect {
             Effect::Armature => "kg·m²",
             Effect::Spring => "N·m/rad",
             Effect::LoadCoulomb => "N·m/N·m",
-        }
-    }
-
-    /// The regressor column of this effect for one joint's state; `load` is the joint's
-    /// rigid-body torque (used by [`Effect::LOADED`] only).
-    pub fn column(self, q: f64, dq: f64, ddq: f64, load: f64, s: &Scales) -> f64 {
-        match self {
-            Effect::Viscous => dq,
-            Effect::Coulomb => (dq / s.coulomb_v).tanh(),
-            Effect::Stribeck => (dq / s.coulomb_v).tanh() * (-(dq / s.stribeck_v).powi(2)).exp(),
-            Effect::Offset => 1.0,
-            Effect::Armature => ddq,
-            Effect::Spring => q,
-            Effect::LoadCoulomb => (dq / s.coulomb_v).tanh() * load.abs(),
-        }
-    }
-}
-
-/// Velocity scales of one joint's friction columns (fixed from the training data, reused for
-/// validation so the model is the same function everywhere).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct Scales {
-    /// Smoothing velocity of the Coulomb sign.
-    pub coulomb_v: f64,
-    /// Stribeck velocity.
-    pub stribeck_v: f64,
-}
-
-impl Scales {
-    /// From the RMS joint velocity of the training data.
-    pub fn from_rms_velocity(rms: f64) -> Self {
-        let rms = if rms.is_finite() && rms > 0.0 {
-            rms
-        } else {
-            1.0
-        };
-        Scales {
-            coulomb_v: 0.01 * rms,
-            stribeck_v: 0.1 * rms,
         }
     }
 }
@@ -202,102 +174,4 @@ pub enum EffectsSpec {
     Auto,
     /// Exactly these terms (possibly none).
     Fixed(Vec<Term>),
-}
-
-/// Candidates merged with rigid-body parameters for every motion, with the base parameters they
-/// merge into. `base_rows(state, out)` fills the base regressor; `states` are random states.
-pub fn structural_merges(
-    terms: &[Term],
-    nb: usize,
-    dof: usize,
-    states: &[[Vec<f64>; 3]],
-    mut base_rows: impl FnMut(&[f64], &[f64], &[f64], &mut [f64]),
-    names: &[String],
-) -> Vec<(Term, Vec<String>)> {
-    use nalgebra::{DMatrix, DVector};
-    let rows = states.len() * dof;
-    let mut a = DMatrix::zeros(rows, nb);
-    let mut yb = vec![0.0; dof * nb];
-    for (s, [q, dq, ddq]) in states.iter().enumerate() {
-        base_rows(q, dq, ddq, &mut yb);
-        for i in 0..dof {
-            for k in 0..nb {
-                a[(s * dof + i, k)] = yb[i * nb + k];
-            }
-        }
-    }
-    let unit = Scales {
-        coulomb_v: 1.0,
-        stribeck_v: 1.0,
-    };
-    let svd = a.clone().svd(true, true);
-    let mut out = Vec::new();
-    for &t in terms {
-        let c = DVector::from_fn(rows, |r, _| {
-            let (s, i) = (r / dof, r % dof);
-            if i == t.joint {
-                let [q, dq, ddq] = &states[s];
-                t.effect.column(q[i], dq[i], ddq[i], 1.0, &unit)
-            } else {
-                0.0
-            }
-        });
-        let Ok(k) = svd.solve(&c, 1e-12) else {
-            continue;
-        };
-        let resid = (&c - &a * &k).norm();
-        if resid < 1e-7 * c.norm().max(1e-300) {
-            let kmax = k.amax();
-            let with = (0..nb)
-                .filter(|&i| k[i].abs() > 1e-6 * kmax)
-                .map(|i| names[i].clone())
-                .collect();
-            out.push((t, with));
-        }
-    }
-    out
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn effects_list_parses_all_joint_and_single_joint_forms() {
-        let spec = parse_list("viscous, coulomb:2", 2).unwrap();
-        assert_eq!(
-            spec,
-            EffectsSpec::Fixed(vec![
-                Term {
-                    effect: Effect::Viscous,
-                    joint: 0
-                },
-                Term {
-                    effect: Effect::Viscous,
-                    joint: 1
-                },
-                Term {
-                    effect: Effect::Coulomb,
-                    joint: 1
-                },
-            ])
-        );
-        assert_eq!(parse_list("auto", 3).unwrap(), EffectsSpec::Auto);
-        assert_eq!(parse_list("none", 3).unwrap(), EffectsSpec::Fixed(vec![]));
-        assert!(parse_list("viscus", 2)
-            .unwrap_err()
-            .contains("unknown effect `viscus`"));
-        assert!(parse_list("coulomb:3", 2)
-            .unwrap_err()
-            .contains("joint must be 1..2"));
-    }
-
-    #[test]
-    fn coulomb_column_is_a_smoothed_sign() {
-        let s = Scales::from_rms_velocity(1.0);
-        assert!((Effect::Coulomb.column(0.0, 0.5, 0.0, 0.0, &s) - 1.0).abs() < 1e-12);
-        assert!((Effect::Coulomb.column(0.0, -0.5, 0.0, 0.0, &s) + 1.0).abs() < 1e-12);
-        assert_eq!(Effect::Coulomb.column(0.0, 0.0, 0.0, 0.0, &s), 0.0);
-        assert!(Effect::Stribeck.column(0.0, 1.0, 0.0, 0.0, &s).abs() < 1e-30);
-    }
 }

@@ -1,0 +1,76 @@
+//! The one implementation of each effect's physics: the torque a unit coefficient adds at one
+//! joint. It is the identification's regressor column (with the training data's smoothing
+//! [`Scales`]) and the simulated plant's effect torque (with [`Scales::EXACT`]: an exact sign).
+
+use serde::Serialize;
+
+use super::Effect;
+
+/// Velocity scales of one joint's friction columns (fixed from the training data, reused for
+/// validation so the model is the same function everywhere).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Scales {
+    /// Smoothing velocity of the Coulomb sign, `tanh(q̇ / v)`; `0` is the exact sign.
+    pub coulomb_v: f64,
+    /// Stribeck velocity.
+    pub stribeck_v: f64,
+}
+
+impl Scales {
+    /// The plant's friction: an exact sign (`sign(0) = 0`) and a Stribeck velocity of 0.1 (rad/s
+    /// or m/s).
+    pub const EXACT: Scales = Scales {
+        coulomb_v: 0.0,
+        stribeck_v: 0.1,
+    };
+
+    /// From the RMS joint velocity of the training data: `v` = 1 %, Stribeck velocity = 10 % of it.
+    pub fn from_rms_velocity(rms: f64) -> Self {
+        let rms = if rms.is_finite() && rms > 0.0 {
+            rms
+        } else {
+            1.0
+        };
+        Scales {
+            coulomb_v: 0.01 * rms,
+            stribeck_v: 0.1 * rms,
+        }
+    }
+
+    /// The (smoothed) sign of the velocity: `tanh(q̇ / v)`, or `sign(q̇)` when `v = 0`.
+    pub fn sign(&self, dq: f64) -> f64 {
+        if self.coulomb_v == 0.0 {
+            sign(dq)
+        } else {
+            (dq / self.coulomb_v).tanh()
+        }
+    }
+}
+
+impl Effect {
+    /// The torque one unit of this effect adds at a joint in state `(q, q̇, q̈)`: the regressor
+    /// column. `load` is the joint's rigid-body torque (used by [`Effect::LOADED`] only; the
+    /// plant's load-dependent friction is [`super::load`]).
+    pub fn column(self, q: f64, dq: f64, ddq: f64, load: f64, s: &Scales) -> f64 {
+        match self {
+            Effect::Viscous => dq,
+            Effect::Coulomb => s.sign(dq),
+            Effect::Stribeck => s.sign(dq) * (-(dq / s.stribeck_v).powi(2)).exp(),
+            Effect::Offset => 1.0,
+            Effect::Armature => ddq,
+            Effect::Spring => q,
+            Effect::LoadCoulomb => s.sign(dq) * load.abs(),
+        }
+    }
+}
+
+/// `sign(x)` with `sign(0) = 0`.
+pub fn sign(x: f64) -> f64 {
+    if x > 0.0 {
+        1.0
+    } else if x < 0.0 {
+        -1.0
+    } else {
+        0.0
+    }
+}
