@@ -127,7 +127,22 @@ fn column(v: &[f64], dof: usize, j: usize) -> impl Iterator<Item = f64> + '_ {
 /// Writes every figure; returns the file names.
 pub fn write_all(dir: &Path, r: &PaperResults, tr: &Traces) -> Result<Vec<String>, PaperError> {
     let mut out = Vec::new();
-    // Fig 9: GA convergence
+    fig_ga_convergence(dir, r, &mut out)?;
+    fig_logistic_excitation(dir, tr, &mut out)?;
+    fig_tracking(dir, tr, &mut out)?;
+    fig_theta(dir, r, &mut out)?;
+    fig_fourier_excitation(dir, tr, &mut out)?;
+    fig_validation(dir, tr, &mut out)?;
+    fig_noise_study(dir, r, &mut out)?;
+    Ok(out)
+}
+
+/// Fig. 9: the GA's convergence, Logistic and Fourier.
+fn fig_ga_convergence(
+    dir: &Path,
+    r: &PaperResults,
+    out: &mut Vec<String>,
+) -> Result<(), PaperError> {
     let ga: Vec<(f64, f64)> =
         r.ga.history
             .iter()
@@ -154,10 +169,17 @@ pub fn write_all(dir: &Path, r: &PaperResults, tr: &Traces) -> Result<Vec<String
             ],
             false,
         )],
-        &mut out,
+        out,
     )?;
+    Ok(())
+}
 
-    // Fig 10: Logistic excitation of the two steps
+/// Fig. 10: the Logistic excitation of the two steps.
+fn fig_logistic_excitation(
+    dir: &Path,
+    tr: &Traces,
+    out: &mut Vec<String>,
+) -> Result<(), PaperError> {
     let mut panels = Vec::new();
     for (s, (traj, joint)) in tr.step_trajectories.iter().zip([1usize, 0]).enumerate() {
         let Some(l) = traj.moving(joint) else {
@@ -185,9 +207,12 @@ pub fn write_all(dir: &Path, r: &PaperResults, tr: &Traces) -> Result<Vec<String
             false,
         ));
     }
-    save(dir, "fig10_logistic_excitation.svg", &panels, &mut out)?;
+    save(dir, "fig10_logistic_excitation.svg", &panels, out)?;
+    Ok(())
+}
 
-    // Figs 11–12: tracking error per iteration, each step
+/// Figs. 11–12: tracking error per iteration, each step.
+fn fig_tracking(dir: &Path, tr: &Traces, out: &mut Vec<String>) -> Result<(), PaperError> {
     for (s, name) in [
         (0usize, "fig11_tracking_step1.svg"),
         (1, "fig12_tracking_step2.svg"),
@@ -218,10 +243,13 @@ pub fn write_all(dir: &Path, r: &PaperResults, tr: &Traces) -> Result<Vec<String
                 false,
             ));
         }
-        save(dir, name, &panels, &mut out)?;
+        save(dir, name, &panels, out)?;
     }
+    Ok(())
+}
 
-    // Figs 13–14: θ̂ per iteration
+/// Figs. 13–14: θ̂ per iteration.
+fn fig_theta(dir: &Path, r: &PaperResults, out: &mut Vec<String>) -> Result<(), PaperError> {
     for (s, name, cols) in [
         (1usize, "fig13_theta_step1.svg", [3usize, 4, 5]),
         (2, "fig14_theta_step2.svg", [0, 1, 2]),
@@ -250,11 +278,18 @@ pub fn write_all(dir: &Path, r: &PaperResults, tr: &Traces) -> Result<Vec<String
                 series,
                 true,
             )],
-            &mut out,
+            out,
         )?;
     }
+    Ok(())
+}
 
-    // Fig 15: Fourier excitation and its tracking
+/// Fig. 15: the Fourier excitation and its tracking.
+fn fig_fourier_excitation(
+    dir: &Path,
+    tr: &Traces,
+    out: &mut Vec<String>,
+) -> Result<(), PaperError> {
     let fl = &tr.fourier_log;
     let fs: Vec<Series> = (0..fl.dof)
         .map(|j| {
@@ -275,10 +310,13 @@ pub fn write_all(dir: &Path, r: &PaperResults, tr: &Traces) -> Result<Vec<String
             fs,
             false,
         )],
-        &mut out,
+        out,
     )?;
+    Ok(())
+}
 
-    // Figs 16–17: validation torque
+/// Figs. 16–17: the validation torque and its prediction errors.
+fn fig_validation(dir: &Path, tr: &Traces, out: &mut Vec<String>) -> Result<(), PaperError> {
     for (j, name) in [
         (0usize, "fig16_validation_joint1.svg"),
         (1, "fig17_validation_joint2.svg"),
@@ -336,11 +374,14 @@ pub fn write_all(dir: &Path, r: &PaperResults, tr: &Traces) -> Result<Vec<String
                 ),
                 ("prediction error".into(), "t (s)", "N·m", err, false),
             ],
-            &mut out,
+            out,
         )?;
     }
+    Ok(())
+}
 
-    // Noise study
+/// The noise study: error against encoder bits and torque noise.
+fn fig_noise_study(dir: &Path, r: &PaperResults, out: &mut Vec<String>) -> Result<(), PaperError> {
     let nz = &r.noise;
     let quant: Vec<Series> = Differentiator::ALL
         .iter()
@@ -392,7 +433,7 @@ pub fn write_all(dir: &Path, r: &PaperResults, tr: &Traces) -> Result<Vec<String
                 true,
             ),
         ],
-        &mut out,
+        out,
     )?;
-    Ok(out)
+    Ok(())
 }

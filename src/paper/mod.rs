@@ -519,7 +519,8 @@ fn torque_error(measured: &[f64], predicted: &[f64], dof: usize, theta: &[f64]) 
     }
 }
 
-/// Runs the whole reproduction.
+/// Runs the whole reproduction: the GA design, the four iteration variants, the Fourier
+/// comparison, the validation and the noise study, in that order.
 pub fn run(model: &dyn Model, cfg: &PaperConfig) -> Result<(PaperResults, Traces), PaperError> {
     let start = Instant::now();
     if model.dof() != 2 || model.nb() != 6 {
@@ -539,12 +540,81 @@ pub fn run(model: &dyn Model, cfg: &PaperConfig) -> Result<(PaperResults, Traces
 
     // 1. GA (eq. 17)
     let problem = logistic_problem(model, cfg, cfg.ts);
+    let (ga, design) = design_by_ga(model, cfg, &problem, show)?;
+    tick("GA (Logistic)");
+
+    // 2. iterative identification with both controllers
+    let v = iterate_variants(model, cfg, &problem, &design, &ga.paper_design.design, show)?;
+    tick("iterations (4 variants)");
+    let error_vs_iteration = error_table(&v, cfg.iterations);
+
+    // 3. Fourier comparison
+    let (fourier, fourier_log) = fourier_comparison(model, cfg, show)?;
+    tick("Fourier (GA + experiment)");
+
+    // 4. validation: q1 = sin t, q2 = sin(−t)
+    let (validation, validation_t, validation_tau) =
+        validate(model, cfg, &v.rhftc, &v.corrected, &fourier.theta_hat);
+
+    // 5. noise study on the converged experiment (the corrected iteration's last one)
+    let noise = noise_study(model, cfg, &problem, &design, &v.logs_corrected, show)?;
+    tick("noise study");
+
+    let step_trajectories = [
+        problem.step_trajectory(&design, 0),
+        problem.step_trajectory(&design, 1),
+    ];
+    let traces = Traces {
+        logs: v.logs,
+        step_trajectories,
+        fourier_log,
+        validation_t,
+        validation_tau,
+    };
+    let results = PaperResults {
+        command: "dynid paper".into(),
+        arm: model.name().into(),
+        base_param_names: model
+            .base_param_names()
+            .iter()
+            .map(|s| s.to_string())
+            .collect(),
+        base_param_exprs: model
+            .base_param_exprs()
+            .iter()
+            .map(|s| s.to_string())
+            .collect(),
+        theta_true: cfg.theta_true.clone(),
+        config: cfg.clone(),
+        ga,
+        iterations: v.rhftc,
+        iterations_corrected: v.corrected,
+        iterations_ctc: v.ctc,
+        iterations_paper_design: v.paper_design,
+        error_vs_iteration,
+        fourier,
+        validation,
+        noise,
+        timings,
+        runtime_s: start.elapsed().as_secs_f64(),
+    };
+    Ok((results, traces))
+}
+
+/// Step 1: the GA's Logistic design (eq. 17), with the paper's own Table 3 design checked
+/// against the same limits at the configured and at a 1 kHz sample time.
+fn design_by_ga(
+    model: &dyn Model,
+    cfg: &PaperConfig,
+    problem: &LogisticProblem,
+    show: bool,
+) -> Result<(GaOut, LogisticDesign), PaperError> {
     let pb = bar(cfg.ga.generations as u64, "GA Logistic", show);
     let r = minimize(&cfg.ga, &problem.bounds(), |x| problem.cost(x), Some(&pb));
     pb.finish();
-    let best = check(&problem, &r.best)?;
-    let design = best.design.clone();
-    let paper_design = check(&problem, &PAPER_TABLE3)?;
+    let best = check(problem, &r.best)?;
+    let design = &best.design;
+    let paper_design = check(problem, &PAPER_TABLE3)?;
     let paper_design_1khz = check(&logistic_problem(model, cfg, 1e-3), &PAPER_TABLE3)?;
     let ga = GaOut {
         a1: design.a[0],
@@ -566,50 +636,51 @@ pub fn run(model: &dyn Model, cfg: &PaperConfig) -> Result<(PaperResults, Traces
         paper_design,
         paper_design_1khz,
     };
-    tick("GA (Logistic)");
+    Ok((ga, best.design))
+}
 
-    // 2. iterative identification with both controllers
+/// The four iteration variants of step 2 and the logs of the ones later steps read.
+struct Variants {
+    rhftc: Vec<IterRecord>,
+    corrected: Vec<IterRecord>,
+    ctc: Vec<IterRecord>,
+    paper_design: Vec<IterRecord>,
+    logs: Vec<[SimLog; 2]>,
+    logs_corrected: Vec<[SimLog; 2]>,
+}
+
+/// Step 2: the iterative identification with RHFTC (plain and corrected estimator), with CTC,
+/// and — for comparison — the paper's method on the paper's own (limit-violating) Table 3 design.
+fn iterate_variants(
+    model: &dyn Model,
+    cfg: &PaperConfig,
+    problem: &LogisticProblem,
+    design: &LogisticDesign,
+    paper_design: &LogisticDesign,
+    show: bool,
+) -> Result<Variants, PaperError> {
     let pb = bar((8 * cfg.iterations) as u64, "iterations", show);
-    let (iterations, logs) = iterate(
-        model,
-        cfg,
-        &problem,
-        &design,
-        Law::Rhftc,
-        IterEstimator::Map,
-        &pb,
-    )?;
-    let (iterations_corrected, logs_corrected) = iterate(
-        model,
-        cfg,
-        &problem,
-        &design,
-        Law::Rhftc,
-        IterEstimator::Corrected,
-        &pb,
-    )?;
-    let (iterations_ctc, _) = iterate(
-        model,
-        cfg,
-        &problem,
-        &design,
-        Law::Ctc,
-        IterEstimator::Map,
-        &pb,
-    )?;
-    // the paper's method on the paper's own (limit-violating) Table 3 design, for comparison
-    let (iterations_paper_design, _) = iterate(
-        model,
-        cfg,
-        &problem,
-        &ga.paper_design.design,
-        Law::Rhftc,
-        IterEstimator::Map,
-        &pb,
-    )?;
+    let run = |d: &LogisticDesign, law: Law, est: IterEstimator| {
+        iterate(model, cfg, problem, d, law, est, &pb)
+    };
+    let (rhftc, logs) = run(design, Law::Rhftc, IterEstimator::Map)?;
+    let (corrected, logs_corrected) = run(design, Law::Rhftc, IterEstimator::Corrected)?;
+    let (ctc, _) = run(design, Law::Ctc, IterEstimator::Map)?;
+    let (paper_design, _) = run(paper_design, Law::Rhftc, IterEstimator::Map)?;
     pb.finish();
-    tick("iterations (4 variants)");
-    let error_vs_iteration = (1..=cfg.iterations)
+    Ok(Variants {
+        rhftc,
+        corrected,
+        ctc,
+        paper_design,
+        logs,
+        logs_corrected,
+    })
+}
+
+/// The error and tracking table: per iteration, each variant's last record.
+fn error_table(v: &Variants, iterations: usize) -> Vec<ErrorRow> {
+    (1..=iterations)
         .map(|it| {
             let last = |recs: &[IterRecord]| recs.iter().rev().find(|r| r.iteration == it).cloned();
             let track = |recs: &[IterRecord]| {
@@ -620,24 +691,37 @@ pub fn run(model: &dyn Model, cfg: &PaperConfig) -> Result<(PaperResults, Traces
             };
             ErrorRow {
                 iteration: it,
-                rhftc: last(&iterations).map_or(f64::NAN, |r| r.max_abs_error_all),
-                corrected: last(&iterations_corrected).map_or(f64::NAN, |r| r.max_abs_error_all),
-                ctc: last(&iterations_ctc).map_or(f64::NAN, |r| r.max_abs_error_all),
-                paper_design: last(&iterations_paper_design)
-                    .map_or(f64::NAN, |r| r.max_abs_error_all),
-                rhftc_tracking: track(&iterations),
-                corrected_tracking: track(&iterations_corrected),
-                ctc_tracking: track(&iterations_ctc),
-                paper_design_tracking: track(&iterations_paper_design),
+                rhftc: last(&v.rhftc).map_or(f64::NAN, |r| r.max_abs_error_all),
+                corrected: last(&v.corrected).map_or(f64::NAN, |r| r.max_abs_error_all),
+                ctc: last(&v.ctc).map_or(f64::NAN, |r| r.max_abs_error_all),
+                paper_design: last(&v.paper_design).map_or(f64::NAN, |r| r.max_abs_error_all),
+                rhftc_tracking: track(&v.rhftc),
+                corrected_tracking: track(&v.corrected),
+                ctc_tracking: track(&v.ctc),
+                paper_design_tracking: track(&v.paper_design),
             }
         })
-        .collect();
+        .collect()
+}
 
-    // 3. Fourier comparison
-    let (fourier, fourier_log) = fourier_comparison(model, cfg, show)?;
-    tick("Fourier (GA + experiment)");
+/// The estimate of the last record at or before iteration `upto` (all when `None`), else θ₀.
+fn theta_upto(recs: &[IterRecord], upto: Option<usize>, cfg: &PaperConfig) -> Vec<f64> {
+    recs.iter()
+        .rev()
+        .find(|r| upto.map_or(true, |u| r.iteration <= u))
+        .map(|r| r.theta_hat.clone())
+        .unwrap_or_else(|| cfg.theta0.clone())
+}
 
-    // 4. validation: q1 = sin t, q2 = sin(−t)
+/// Step 4: torque errors on the validation motion q1 = sin t, q2 = sin(−t); also returns its
+/// time axis and the measured, Logistic and Fourier torques for the figures.
+fn validate(
+    model: &dyn Model,
+    cfg: &PaperConfig,
+    rhftc: &[IterRecord],
+    corrected: &[IterRecord],
+    fourier_theta: &[f64],
+) -> (ValidationOut, Vec<f64>, [Vec<f64>; 3]) {
     let vtraj = Sine {
         amplitude: vec![1.0, -1.0],
         omega: vec![1.0, 1.0],
@@ -646,25 +730,12 @@ pub fn run(model: &dyn Model, cfg: &PaperConfig) -> Result<(PaperResults, Traces
     };
     let vs = sample(&vtraj, cfg.ts, true);
     let measured = torque_along(model, &vs, &cfg.theta_true);
-    let final_theta = iterations
-        .last()
-        .map(|r| r.theta_hat.clone())
-        .unwrap_or_else(|| cfg.theta0.clone());
-    let iter3_theta = iterations
-        .iter()
-        .rev()
-        .find(|r| r.iteration <= 3)
-        .map(|r| r.theta_hat.clone())
-        .unwrap_or_else(|| cfg.theta0.clone());
+    let final_theta = theta_upto(rhftc, None, cfg);
+    let iter3_theta = theta_upto(rhftc, Some(3), cfg);
     let pred_l = torque_along(model, &vs, &final_theta);
     let pred_l3 = torque_along(model, &vs, &iter3_theta);
-    let pred_f = torque_along(model, &vs, &fourier.theta_hat);
-    let corr3_theta = iterations_corrected
-        .iter()
-        .rev()
-        .find(|r| r.iteration <= 3)
-        .map(|r| r.theta_hat.clone())
-        .unwrap_or_else(|| cfg.theta0.clone());
+    let pred_f = torque_along(model, &vs, fourier_theta);
+    let corr3_theta = theta_upto(corrected, Some(3), cfg);
     let pred_c3 = torque_along(model, &vs, &corr3_theta);
     let validation = ValidationOut {
         trajectory: "q1 = sin t, q2 = sin(-t)".into(),
@@ -672,17 +743,27 @@ pub fn run(model: &dyn Model, cfg: &PaperConfig) -> Result<(PaperResults, Traces
         logistic_iter3: torque_error(&measured, &pred_l3, 2, &iter3_theta),
         logistic: torque_error(&measured, &pred_l, 2, &final_theta),
         corrected_iter3: torque_error(&measured, &pred_c3, 2, &corr3_theta),
-        fourier: torque_error(&measured, &pred_f, 2, &fourier.theta_hat),
+        fourier: torque_error(&measured, &pred_f, 2, fourier_theta),
     };
+    (validation, vs.t, [measured, pred_l, pred_f])
+}
 
-    // 5. noise study on the converged experiment (the corrected iteration's last one)
+/// Step 5: the noise study on the converged experiment (the corrected iteration's last logs).
+fn noise_study(
+    model: &dyn Model,
+    cfg: &PaperConfig,
+    problem: &LogisticProblem,
+    design: &LogisticDesign,
+    logs_corrected: &[[SimLog; 2]],
+    show: bool,
+) -> Result<noise::NoiseStudy, PaperError> {
     let last = logs_corrected
         .last()
         .ok_or_else(|| PaperError::Design("no iterations were run".into()))?;
     let moving = problem.moving();
     let mut steps = Vec::new();
     for (s, plan) in problem.steps.iter().enumerate() {
-        let traj = problem.step_trajectory(&design, s);
+        let traj = problem.step_trajectory(design, s);
         let joint = traj
             .moving(plan.joint)
             .copied()
@@ -712,47 +793,7 @@ pub fn run(model: &dyn Model, cfg: &PaperConfig) -> Result<(PaperResults, Traces
     );
     let noise = noise::run(model, &steps, &cfg.theta_true, &ncfg, &pb);
     pb.finish();
-    tick("noise study");
-
-    let step_trajectories = [
-        problem.step_trajectory(&design, 0),
-        problem.step_trajectory(&design, 1),
-    ];
-    let traces = Traces {
-        logs,
-        step_trajectories,
-        fourier_log,
-        validation_t: vs.t.clone(),
-        validation_tau: [measured, pred_l, pred_f],
-    };
-    let results = PaperResults {
-        command: "dynid paper".into(),
-        arm: model.name().into(),
-        base_param_names: model
-            .base_param_names()
-            .iter()
-            .map(|s| s.to_string())
-            .collect(),
-        base_param_exprs: model
-            .base_param_exprs()
-            .iter()
-            .map(|s| s.to_string())
-            .collect(),
-        theta_true: cfg.theta_true.clone(),
-        config: cfg.clone(),
-        ga,
-        iterations,
-        iterations_corrected,
-        iterations_ctc,
-        iterations_paper_design,
-        error_vs_iteration,
-        fourier,
-        validation,
-        noise,
-        timings,
-        runtime_s: start.elapsed().as_secs_f64(),
-    };
-    Ok((results, traces))
+    Ok(noise)
 }
 
 /// Writes `report.md`, `results.json` and the figures into `dir` (created if missing).
