@@ -3,7 +3,11 @@
 //! One `[[link]]` per link with `m`, `com = [x, y, z]` (link frame, m) and either
 //! `inertia_com` or `inertia_origin = [ixx, ixy, ixz, iyy, iyz, izz]` (kg·m²; the off-diagonal
 //! entries are those of the inertia *tensor*, i.e. `ixy = −∫xy dm`, as in URDF). An optional
-//! `[effects]` table holds per-joint arrays ([`KNOWN_EFFECTS`]).
+//! `[effects]` table holds per-joint arrays ([`KNOWN_EFFECTS`]): the coefficients of
+//! `viscous`, `coulomb`, `stribeck`, `armature`, `offset`, `spring` and `loadcoulomb`, and the
+//! friction's velocity scales `sign_velocity` (the sign is `tanh(q̇/v)`; absent or 0: exact) and
+//! `stribeck_velocity` (default 0.1) — the torque of each is [`crate::effects::Effect::column`].
+//! `dynid identify` writes such a file (`identified.params.toml`, [`InertialParams::to_toml`]).
 //!
 //! `p` follows [`crate::model::PARAM_ORDER`]: per link `XX, XY, XZ, YY, YZ, ZZ, MX, MY, MZ, M`
 //! about the link-frame origin (`XX… = inertia_com + parallel-axis term`, `MX… = m·com`).
@@ -38,14 +42,18 @@ use crate::diag::{did_you_mean, list, Location, TomlProblem};
 use crate::effects::{self, Effect, Scales};
 use crate::tomlread::{Fail, Src, TableView};
 
-/// Names of the per-joint effects an `[effects]` table may hold.
-pub const KNOWN_EFFECTS: [&str; 6] = [
+/// Names of the per-joint arrays an `[effects]` table may hold: the effects' coefficients, then
+/// the velocity scales of the friction terms.
+pub const KNOWN_EFFECTS: [&str; 9] = [
     "viscous",
     "coulomb",
+    "stribeck",
     "armature",
     "offset",
     "spring",
     "loadcoulomb",
+    "sign_velocity",
+    "stribeck_velocity",
 ];
 
 const TOP_KEYS: [&str; 3] = ["link", "effects", "allow_nonphysical"];
@@ -88,8 +96,12 @@ impl LinkInertia {
 pub struct Effects {
     /// Viscous friction `Fv`: `τ += Fv·q̇`.
     pub viscous: Option<Vec<f64>>,
-    /// Coulomb friction `Fc`: `τ += Fc·sign(q̇)` (sign(0) = 0).
+    /// Coulomb friction `Fc`: `τ += Fc·sign(q̇)` (sign(0) = 0; smoothed to `tanh(q̇/v)` by
+    /// [`Effects::sign_velocity`]).
     pub coulomb: Option<Vec<f64>>,
+    /// Stribeck friction `Fs` (extra breakaway friction at low speed):
+    /// `τ += Fs·sign(q̇)·exp(−(q̇/vs)²)`, `vs` from [`Effects::stribeck_velocity`].
+    pub stribeck: Option<Vec<f64>>,
     /// Armature (rotor) inertia `Ia`: `τ += Ia·q̈`.
     pub armature: Option<Vec<f64>>,
     /// Constant torque offset: `τ += τ0`.
@@ -101,6 +113,11 @@ pub struct Effects {
     /// `τ = u + μ·sign(q̇)·|u|`, `u` the rigid-body torque plus the other effects
     /// ([`Effects::load`]; `μ < 1`).
     pub loadcoulomb: Option<Vec<f64>>,
+    /// Velocity `v` of the smoothed friction sign `tanh(q̇/v)` (Coulomb, Stribeck and
+    /// load-dependent friction; identification fits with one). Absent or 0: the exact sign.
+    pub sign_velocity: Option<Vec<f64>>,
+    /// Stribeck velocity `vs` (default 0.1 rad/s or m/s).
+    pub stribeck_velocity: Option<Vec<f64>>,
 }
 
 impl Effects {
@@ -112,19 +129,29 @@ impl Effects {
             && self.offset.is_none()
             && self.spring.is_none()
             && self.loadcoulomb.is_none()
+            && self.stribeck.is_none()
+    }
+
+    /// The friction velocity scales of joint `j`.
+    pub fn scales(&self, j: usize) -> Scales {
+        let at = |v: &Option<Vec<f64>>, default: f64| v.as_ref().map_or(default, |v| v[j]);
+        Scales {
+            coulomb_v: at(&self.sign_velocity, Scales::EXACT.coulomb_v),
+            stribeck_v: at(&self.stribeck_velocity, Scales::EXACT.stribeck_v),
+        }
     }
 
     /// Joint `j`'s torque with load-dependent friction, from `u` (rigid body + other effects):
     /// `u + μ·sign(q̇)·|u|` ([`effects::load`]).
     pub fn load(&self, j: usize, dq: f64, u: f64) -> f64 {
         let mu = self.loadcoulomb.as_ref().map_or(0.0, |v| v[j]);
-        effects::load(mu, dq, u, &Scales::EXACT)
+        effects::load(mu, dq, u, &self.scales(j))
     }
 
     /// The inverse of [`Effects::load`] ([`effects::unload`]).
     pub fn unload(&self, j: usize, dq: f64, tau: f64) -> f64 {
         let mu = self.loadcoulomb.as_ref().map_or(0.0, |v| v[j]);
-        effects::unload(mu, dq, tau)
+        effects::unload(mu, dq, tau, &self.scales(j))
     }
 
     /// The additive effects and their coefficients, in summation order.
@@ -140,13 +167,19 @@ impl Effects {
 
     /// Torque of the additive effects at joint `j` for position `q`, velocity `dq` and
     /// acceleration `ddq` (all but [`Effects::loadcoulomb`], see [`Effects::load`]): each
-    /// effect's [`Effect::column`] with an exact sign.
+    /// effect's [`Effect::column`] with the joint's [`Effects::scales`].
     pub fn torque(&self, j: usize, q: f64, dq: f64, ddq: f64) -> f64 {
-        let mut terms = self.additive().into_iter().map(|(e, c)| {
-            c.as_ref().map_or(0.0, |v| v[j]) * e.column(q, dq, ddq, 0.0, &Scales::EXACT)
-        });
+        let s = self.scales(j);
+        let mut terms = self
+            .additive()
+            .into_iter()
+            .map(|(e, c)| c.as_ref().map_or(0.0, |v| v[j]) * e.column(q, dq, ddq, 0.0, &s));
         let first = terms.next().unwrap_or(0.0);
-        terms.fold(first, |sum, t| sum + t)
+        let sum = terms.fold(first, |sum, t| sum + t);
+        match &self.stribeck {
+            Some(v) => sum + v[j] * Effect::Stribeck.column(q, dq, ddq, 0.0, &s),
+            None => sum,
+        }
     }
 }
 
@@ -188,6 +221,15 @@ impl Clone for ParamsError {
                     value: *value,
                 }
             }
+            ParamsErrorKind::Velocity {
+                key,
+                joint,
+                zero_ok,
+            } => ParamsErrorKind::Velocity {
+                key: key.clone(),
+                joint: *joint,
+                zero_ok: *zero_ok,
+            },
             ParamsErrorKind::UnknownEffect { name, suggestion } => ParamsErrorKind::UnknownEffect {
                 name: name.clone(),
                 suggestion: *suggestion,
@@ -223,6 +265,12 @@ pub enum ParamsErrorKind {
     LoadFrictionRange {
         joint: usize,
         value: f64,
+    },
+    /// A friction velocity scale that is negative (or zero where it divides).
+    Velocity {
+        key: String,
+        joint: usize,
+        zero_ok: bool,
     },
 }
 
@@ -280,6 +328,11 @@ impl fmt::Display for ParamsErrorKind {
             ParamsErrorKind::LoadFrictionRange { joint, value } => write!(
                 f,
                 "joint {joint}: {value} is not a load-dependent friction coefficient — it is a fraction of the transmitted torque, 0 <= mu < 1"
+            ),
+            ParamsErrorKind::Velocity { key, joint, zero_ok } => write!(
+                f,
+                "joint {joint}: `{key}` must be {} (a velocity in rad/s or m/s)",
+                if *zero_ok { "0 (exact sign) or positive" } else { "positive" }
             ),
             ParamsErrorKind::UnknownEffect { name, suggestion } => {
                 write!(f, "unknown effect `{name}` — ")?;
@@ -374,6 +427,98 @@ impl InertialParams {
         })
     }
 
+    /// The parameter file of these parameters (read back by [`InertialParams::from_str`] to the
+    /// same numbers: floats are written in their shortest round-trip form). `header` lines
+    /// become `#` comments at the top. Links are written with `inertia_origin`, the form the
+    /// full parameter vector holds.
+    pub fn to_toml(&self, header: &[String]) -> String {
+        use std::fmt::Write as _;
+        let nums = |v: &[f64]| {
+            let items: Vec<String> = v.iter().map(|x| format!("{x:?}")).collect();
+            format!("[{}]", items.join(", "))
+        };
+        let mut s = String::new();
+        for h in header {
+            let _ = writeln!(s, "# {h}");
+        }
+        if self
+            .links
+            .iter()
+            .any(|l| check_physical(l.m, &l.inertia_com).is_err())
+        {
+            s.push_str("allow_nonphysical = true\n");
+        }
+        for l in &self.links {
+            s.push_str("\n[[link]]\n");
+            if let Some(n) = &l.name {
+                let _ = writeln!(s, "name = {n:?}");
+            }
+            let _ = writeln!(s, "m = {:?}", l.m);
+            let _ = writeln!(s, "com = {}", nums(&l.com));
+            let _ = writeln!(s, "inertia_origin = {}", nums(&l.inertia_origin));
+        }
+        let e = &self.effects;
+        let arrays = [
+            ("viscous", &e.viscous),
+            ("coulomb", &e.coulomb),
+            ("stribeck", &e.stribeck),
+            ("armature", &e.armature),
+            ("offset", &e.offset),
+            ("spring", &e.spring),
+            ("loadcoulomb", &e.loadcoulomb),
+            ("sign_velocity", &e.sign_velocity),
+            ("stribeck_velocity", &e.stribeck_velocity),
+        ];
+        if arrays.iter().any(|(_, v)| v.is_some()) {
+            s.push_str("\n[effects]\n");
+            for (k, v) in arrays {
+                if let Some(v) = v {
+                    let _ = writeln!(s, "{k} = {}", nums(v));
+                }
+            }
+        }
+        s
+    }
+
+    /// Parameters from a full parameter vector `p` ([`crate::model::PARAM_ORDER`] per link, about
+    /// the link-frame origin) and effects. A link with `M = 0` gets its centre of mass at the
+    /// origin.
+    pub fn from_full_vector(p: &[f64], effects: Effects) -> Self {
+        let links = p
+            .chunks_exact(10)
+            .map(|c| {
+                let m = c[9];
+                let com = if m != 0.0 {
+                    [c[6] / m, c[7] / m, c[8] / m]
+                } else {
+                    [0.0; 3]
+                };
+                let [x, y, z] = com;
+                let shift = [
+                    m * (y * y + z * z),
+                    -m * x * y,
+                    -m * x * z,
+                    m * (x * x + z * z),
+                    -m * y * z,
+                    m * (x * x + y * y),
+                ];
+                let inertia_origin = [c[0], c[1], c[2], c[3], c[4], c[5]];
+                LinkInertia {
+                    name: None,
+                    m,
+                    com,
+                    inertia_com: std::array::from_fn(|k| inertia_origin[k] - shift[k]),
+                    inertia_origin,
+                }
+            })
+            .collect();
+        InertialParams {
+            links,
+            effects,
+            warnings: Vec::new(),
+        }
+    }
+
     /// Degrees of freedom (number of links).
     pub fn dof(&self) -> usize {
         self.links.len()
@@ -462,13 +607,34 @@ fn read_effects(t: &TableView<'_>, dof: usize) -> Result<Effects, ParamsError> {
             });
         }
     }
+    let velocity = |key: &str, zero_ok: bool| -> Result<Option<Vec<f64>>, ParamsError> {
+        let v = t.f64_array_opt(key, Some(dof))?;
+        if let Some(j) = v
+            .iter()
+            .flatten()
+            .position(|&x| x < 0.0 || (x == 0.0 && !zero_ok))
+        {
+            return Err(ParamsError {
+                loc: t.loc_of(key),
+                kind: Box::new(ParamsErrorKind::Velocity {
+                    key: key.to_string(),
+                    joint: j + 1,
+                    zero_ok,
+                }),
+            });
+        }
+        Ok(v)
+    };
     Ok(Effects {
         viscous: t.f64_array_opt("viscous", Some(dof))?,
         coulomb: t.f64_array_opt("coulomb", Some(dof))?,
+        stribeck: t.f64_array_opt("stribeck", Some(dof))?,
         armature: t.f64_array_opt("armature", Some(dof))?,
         offset: t.f64_array_opt("offset", Some(dof))?,
         spring: t.f64_array_opt("spring", Some(dof))?,
         loadcoulomb,
+        sign_velocity: velocity("sign_velocity", true)?,
+        stribeck_velocity: velocity("stribeck_velocity", false)?,
     })
 }
 

@@ -391,6 +391,7 @@ mod tests {
             offset: Some(vec![0.2, -0.1]),
             spring: Some(vec![1.0, -0.5]),
             loadcoulomb: Some(vec![0.15, 0.3]),
+            ..Effects::default()
         };
         let plant = Plant::new(model, theta, Some(effects));
         let mut w = Work {

@@ -9,11 +9,11 @@ pub fn load(mu: f64, dq: f64, u: f64, s: &Scales) -> f64 {
     u + mu * s.sign(dq) * u.abs()
 }
 
-/// The inverse of [`load`] for an exact sign: the `u` a joint torque `tau` leaves for the rigid
-/// body and the other effects, `tau / (1 + μ·sign(q̇)·sign(tau))` (u and tau share their sign for
-/// `|μ| < 1`).
-pub fn unload(mu: f64, dq: f64, tau: f64) -> f64 {
-    tau / (1.0 + mu * super::sign(dq) * super::sign(tau))
+/// The inverse of [`load`]: the `u` a joint torque `tau` leaves for the rigid body and the other
+/// effects, `tau / (1 + μ·s(q̇)·sign(tau))`, `s` the (smoothed) sign (u and tau share their sign
+/// for `|μ| < 1`).
+pub fn unload(mu: f64, dq: f64, tau: f64, s: &Scales) -> f64 {
+    tau / (1.0 + mu * s.sign(dq) * super::sign(tau))
 }
 
 #[cfg(test)]
@@ -28,8 +28,10 @@ mod tests {
             (0.2, 0.5, -3.0),
             (0.1, 0.0, 1.5),
         ] {
-            let tau = load(mu, dq, u, &Scales::EXACT);
-            assert!((unload(mu, dq, tau) - u).abs() < 1e-15 * u.abs());
+            for s in [Scales::EXACT, Scales::from_rms_velocity(1.0)] {
+                let tau = load(mu, dq, u, &s);
+                assert!((unload(mu, dq, tau, &s) - u).abs() < 1e-15 * u.abs());
+            }
         }
     }
 }

@@ -425,3 +425,54 @@ fn fuzz_seeds_are_valid_inputs() {
         dynid::urdf::import_str(text(3), "seed.urdf", &Default::default()).expect("URDF seed");
     assert_eq!(imported.table.joints.len(), 2);
 }
+
+/// `to_toml` writes what `from_str` reads back: the full vector to rounding of `MX = m·(MX/m)`
+/// (a few ulp) and every effect array exactly.
+#[test]
+fn params_files_round_trip_through_the_writer() {
+    use dynid::params::Effects;
+    let mut r = rng(12);
+    let p = cloud_params(&random_clouds(&mut r, 3));
+    let effects = Effects {
+        viscous: Some(vec![0.1, 0.2, 0.3]),
+        coulomb: Some(vec![0.5, 0.0, 1.0 / 3.0]),
+        stribeck: Some(vec![0.05, 0.0, 0.0]),
+        loadcoulomb: Some(vec![0.0, 0.1, 0.2]),
+        sign_velocity: Some(vec![0.01, 0.02, 0.0]),
+        stribeck_velocity: Some(vec![0.1, 0.2, 0.3]),
+        ..Effects::default()
+    };
+    let params = InertialParams::from_full_vector(&p, effects.clone());
+    let text = params.to_toml(&["written by a test".into()]);
+    let back = InertialParams::from_str(&text, "w.toml", 3, &ParamsOptions::default())
+        .unwrap_or_else(|e| panic!("{e}\n{text}"));
+    assert_close(&back.full_vector(), &p, 1e-15, "written and read back");
+    assert_eq!(back.effects, effects);
+    assert!(text.starts_with("# written by a test\n"));
+}
+
+/// The plant's friction with a smoothing velocity and a Stribeck term, against its closed form.
+#[test]
+fn params_effects_smoothed_friction_matches_its_closed_form() {
+    use dynid::params::Effects;
+    let e = Effects {
+        coulomb: Some(vec![0.5]),
+        stribeck: Some(vec![0.2]),
+        viscous: Some(vec![0.1]),
+        sign_velocity: Some(vec![0.01]),
+        stribeck_velocity: Some(vec![0.3]),
+        ..Effects::default()
+    };
+    for dq in [-1.0, -0.004, 0.0, 0.002, 0.5] {
+        let s = (dq / 0.01f64).tanh();
+        let want = 0.1 * dq + 0.5 * s + 0.2 * s * (-(dq / 0.3f64).powi(2)).exp();
+        assert!((e.torque(0, 0.3, dq, 2.0) - want).abs() < 1e-15, "dq {dq}");
+    }
+    // Without a velocity the sign is exact and sign(0) = 0.
+    let exact = Effects {
+        coulomb: Some(vec![0.5]),
+        ..Effects::default()
+    };
+    assert_eq!(exact.torque(0, 0.0, 1e-9, 0.0), 0.5);
+    assert_eq!(exact.torque(0, 0.0, 0.0, 0.0), 0.0);
+}
