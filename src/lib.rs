@@ -27,6 +27,7 @@ pub mod model;
 pub mod pack;
 pub mod paper;
 pub mod params;
+pub mod physical;
 pub mod reference;
 pub mod report;
 pub mod signal;
