@@ -9,6 +9,7 @@
 //! | `start.rs` | its strictly feasible start |
 //! | `spd.rs` | equilibrated Cholesky and eigenvalue of badly scaled SPD matrices |
 //! | `validate.rs` | input checks, each error saying what to change |
+//! | [`synth`] | 7-link-sized synthetic problems with a known answer (tests, benchmark) |
 //!
 //! ```
 //! use dynid::physical::ConsistentProblem;
@@ -23,11 +24,15 @@
 
 pub mod consistent;
 pub mod pseudo_inertia;
+pub mod synth;
 
 mod barrier;
 mod spd;
 mod start;
 mod validate;
+
+#[cfg(test)]
+mod tests;
 
 pub use consistent::{
     ActiveConstraint, ConsistentError, ConsistentFit, ConsistentProblem, EffectBound, Ellipsoid,
