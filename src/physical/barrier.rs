@@ -192,8 +192,19 @@ pub(crate) fn solve(
         return Err(Failure::InfeasibleStart);
     }
     let nu = barrier_degree(prog);
-    let t_final = nu / settings.gap;
-    let mut t = t0.clamp(f64::MIN_POSITIVE, t_final);
+    // ν = 0 (no constraint): one Newton step is exact, any t will do.
+    let t_final = nu.max(1.0) / settings.gap;
+    if !(t_final.is_finite() && t_final > 0.0) {
+        return Err(Failure::Numerical(format!(
+            "the duality-gap target {:e} is not a positive number",
+            settings.gap
+        )));
+    }
+    let mut t = if t0.is_finite() && t0 > 0.0 {
+        t0.min(t_final)
+    } else {
+        t_final
+    };
     let mut x = x0;
     let mut steps = 0;
     let mut centrings = 0;

@@ -75,7 +75,8 @@ pub struct Ellipsoid {
 /// Stopping rules of the interior-point method.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SolverOptions {
-    /// Target duality gap relative to `ŷᵀNŷ` (the data cost of `y = 0`). Default `1e-10`.
+    /// Target duality gap relative to `ŷᵀNŷ` (the data cost of `y = 0`; the start's cost if
+    /// that is larger, e.g. for `ŷ = 0`). Finite and `> 0`; default `1e-10`.
     pub gap_tol: f64,
     /// Newton steps allowed in total. Default 500 (problems of 7 links take ~60–120).
     pub max_iterations: usize,
@@ -221,6 +222,8 @@ pub enum ConsistentError {
     Weight { value: f64 },
     #[error("the prior is not physically consistent: link {link} {detail}; fix the prior or drop it (--prior)")]
     PriorNotPhysical { link: usize, detail: String },
+    #[error("solver option {detail} — gap_tol must be finite and > 0 (default 1e-10), max_iterations >= 1 (default 500)")]
+    Options { detail: String },
     #[error(
         "margin (mass {mass} kg, length {length} m) is not usable — both must be finite and >= 0"
     )]
@@ -293,8 +296,9 @@ impl ConsistentProblem {
         let x_start = self.start(&asm)?;
         let (data_start, reg_start) = self.cost(&asm, &x_start);
         let f_start = data_start + reg_start;
-        let gap = self.options.gap_tol * asm.scale.max(f64::MIN_POSITIVE);
-        let nu = barrier::barrier_degree(&asm.program);
+        // Objective scale: ŷᵀNŷ, or the start's cost (or λ) when ŷ = 0.
+        let gap = self.options.gap_tol * asm.scale.max(f_start).max(asm.lambda);
+        let nu = barrier::barrier_degree(&asm.program).max(1.0);
         let settings = Settings {
             gap,
             max_newton: self.options.max_iterations,

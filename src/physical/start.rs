@@ -83,8 +83,9 @@ fn sphere_start(q: &Matrix4<f64>, margin: &Matrix4<f64>, mass: f64) -> Matrix4<f
 pub(crate) fn effect_start(u: f64, (lo, hi): (f64, f64), natural: f64) -> f64 {
     let u = if u.is_finite() { u } else { 0.0 };
     if lo.is_finite() && hi.is_finite() {
-        let pad = LIFT * (hi - lo);
-        return u.clamp(lo + pad, hi - pad);
+        // Halves first: hi − lo may overflow.
+        let pad = 2.0 * LIFT * (0.5 * hi - 0.5 * lo);
+        return u.max(lo + pad).min(hi - pad);
     }
     let bound = if lo.is_finite() { lo } else { hi };
     let mut pad = LIFT * u.abs().max(bound.abs()).max(natural);
@@ -129,5 +130,7 @@ mod tests {
         assert!(e > 0.0 && e < 0.5);
         assert!(effect_start(5.0, (f64::NEG_INFINITY, 1.0), 0.0) < 1.0);
         assert_eq!(effect_start(0.2, (0.0, f64::INFINITY), 1.0), 0.2);
+        let wide = effect_start(0.0, (-f64::MAX, f64::MAX), 1.0);
+        assert!(wide > -f64::MAX && wide < f64::MAX);
     }
 }

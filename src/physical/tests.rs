@@ -369,6 +369,19 @@ fn bad_inputs_are_errors_not_panics() {
         length: 0.1,
     });
     assert!(matches!(pb.solve(), Err(ConsistentError::Margin { .. })));
+
+    let mut pb = base();
+    pb.bounds.clear();
+    for (gap_tol, max_iterations) in [(0.0, 10), (f64::NAN, 10), (1e-10, 0)] {
+        pb.options = super::SolverOptions { gap_tol, max_iterations };
+        assert!(matches!(pb.solve(), Err(ConsistentError::Options { .. })));
+    }
+    pb.options = super::SolverOptions { gap_tol: 1e-10, max_iterations: 1 };
+    assert!(matches!(pb.solve(), Err(ConsistentError::MaxIterations { .. })));
+
+    let mut pb = base();
+    pb.n_links = usize::MAX;
+    assert!(matches!(pb.solve(), Err(ConsistentError::Dimension { .. })));
 }
 
 /// Checks a synthetic 7-link solve: feasible by nalgebra's eigen-solver, bounds held, and no
@@ -505,4 +518,26 @@ fn module_doc_example_holds() {
     );
     let fit = pb.solve().unwrap();
     assert!(fit.links[0].consistent && fit.links[0].mass >= 0.0);
+}
+
+#[test]
+fn degenerate_but_valid_problems_solve() {
+    // Effects only, no constraint at all: the regularised least squares.
+    let estimate = DVector::from_row_slice(&[0.3, -0.2]);
+    let normal = random_spd(2, 10, 9);
+    let pb = ConsistentProblem::new(0, 2, DMatrix::zeros(0, 0), estimate.clone(), normal);
+    let fit = pb.solve().unwrap();
+    assert!((&fit.effects - &estimate).amax() < 1e-5);
+    assert!(fit.active.is_empty());
+    // ŷ = 0 with one link: the answer is the empty body (J = 0, optimal cost 0), reached to
+    // within the gap, which is all a zero optimum allows.
+    let pb = ConsistentProblem::new(1, 0, DMatrix::identity(10, 10), DVector::zeros(10), DMatrix::identity(10, 10));
+    let fit = pb.solve().unwrap();
+    assert!(fit.data_cost + fit.regulariser_cost <= fit.report.duality_gap);
+    assert!(fit.params.amax() < 1e-4, "{}", fit.params);
+    // Enormous but finite bounds.
+    let mut pb = ConsistentProblem::new(0, 1, DMatrix::zeros(0, 0), DVector::from_element(1, 2.0), DMatrix::identity(1, 1));
+    pb.bounds = vec![EffectBound { effect: 0, lo: -f64::MAX, hi: f64::MAX }];
+    let fit = pb.solve().unwrap();
+    assert!((fit.effects[0] - 2.0).abs() < 1e-5);
 }

@@ -27,6 +27,15 @@ pub(crate) fn validate(pb: &ConsistentProblem) -> Result<(), ConsistentError> {
     finite("normal", pb.normal.as_slice())?;
     normal_matrix(&pb.normal)?;
     effects(pb)?;
+    let opts = pb.options;
+    if !(opts.gap_tol.is_finite() && opts.gap_tol > 0.0) || opts.max_iterations == 0 {
+        return Err(ConsistentError::Options {
+            detail: format!(
+                "gap_tol = {}, max_iterations = {}",
+                opts.gap_tol, opts.max_iterations
+            ),
+        });
+    }
     if let Some(w) = pb.weight {
         if !(w.is_finite() && w > 0.0) {
             return Err(ConsistentError::Weight { value: w });
@@ -62,9 +71,20 @@ fn dim_err(
 }
 
 fn sizes(pb: &ConsistentProblem) -> Result<(), ConsistentError> {
-    let n_pi = 10 * pb.n_links;
+    // Sizes that overflow are impossible (the matrices could not be allocated): report them
+    // as a mismatch rather than overflow.
+    let too_big = || {
+        dim_err(
+            "n_links or n_effects",
+            "a size the matrices can have".into(),
+            format!("{} links, {} effects", pb.n_links, pb.n_effects),
+            "n_links counts links (10 parameters each), n_effects the effect coefficients",
+        )
+    };
+    let n_pi = pb.n_links.checked_mul(10).ok_or_else(too_big)?;
     let nb = pb.base_map.nrows();
-    let ny = nb + pb.n_effects;
+    let ny = nb.checked_add(pb.n_effects).ok_or_else(too_big)?;
+    n_pi.checked_add(pb.n_effects).ok_or_else(too_big)?;
     if n_pi + pb.n_effects == 0 {
         return Err(dim_err(
             "the problem",
