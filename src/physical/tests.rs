@@ -260,26 +260,29 @@ fn negative_viscous_is_clamped_and_active() {
     }
 }
 
-#[test]
-fn bad_inputs_are_errors_not_panics() {
-    // (d)
+/// One link and one effect with the crossed bounds `[0.6, 0.5]` on it.
+fn small_problem() -> ConsistentProblem {
     let estimate =
         DVector::from_row_slice(&[0.1, 0.0, 0.0, 0.1, 0.0, 0.1, 0.0, 0.0, 0.0, 1.0, 0.2]);
-    let base = || {
-        let mut pb = ConsistentProblem::new(
-            1,
-            1,
-            DMatrix::identity(10, 10),
-            estimate.clone(),
-            DMatrix::identity(11, 11),
-        );
-        pb.bounds = vec![EffectBound {
-            effect: 0,
-            lo: 0.6,
-            hi: 0.5,
-        }];
-        pb
-    };
+    let mut pb = ConsistentProblem::new(
+        1,
+        1,
+        DMatrix::identity(10, 10),
+        estimate,
+        DMatrix::identity(11, 11),
+    );
+    pb.bounds = vec![EffectBound {
+        effect: 0,
+        lo: 0.6,
+        hi: 0.5,
+    }];
+    pb
+}
+
+#[test]
+fn bad_data_is_an_error_not_a_panic() {
+    // (d)
+    let base = small_problem;
     let err = base().solve().unwrap_err();
     assert!(
         matches!(err, ConsistentError::InfeasibleBounds { effect: 0, .. }),
@@ -334,7 +337,12 @@ fn bad_inputs_are_errors_not_panics() {
         pb.solve(),
         Err(ConsistentError::NotSemidefinite { .. })
     ));
+}
 
+#[test]
+fn bad_options_are_errors_not_panics() {
+    let base = small_problem;
+    let estimate = base().estimate;
     let mut pb = base();
     pb.bounds.clear();
     let mut prior = estimate.rows(0, 10).into_owned();
@@ -373,11 +381,20 @@ fn bad_inputs_are_errors_not_panics() {
     let mut pb = base();
     pb.bounds.clear();
     for (gap_tol, max_iterations) in [(0.0, 10), (f64::NAN, 10), (1e-10, 0)] {
-        pb.options = super::SolverOptions { gap_tol, max_iterations };
+        pb.options = super::SolverOptions {
+            gap_tol,
+            max_iterations,
+        };
         assert!(matches!(pb.solve(), Err(ConsistentError::Options { .. })));
     }
-    pb.options = super::SolverOptions { gap_tol: 1e-10, max_iterations: 1 };
-    assert!(matches!(pb.solve(), Err(ConsistentError::MaxIterations { .. })));
+    pb.options = super::SolverOptions {
+        gap_tol: 1e-10,
+        max_iterations: 1,
+    };
+    assert!(matches!(
+        pb.solve(),
+        Err(ConsistentError::MaxIterations { .. })
+    ));
 
     let mut pb = base();
     pb.n_links = usize::MAX;
@@ -531,13 +548,29 @@ fn degenerate_but_valid_problems_solve() {
     assert!(fit.active.is_empty());
     // ŷ = 0 with one link: the answer is the empty body (J = 0, optimal cost 0), reached to
     // within the gap, which is all a zero optimum allows.
-    let pb = ConsistentProblem::new(1, 0, DMatrix::identity(10, 10), DVector::zeros(10), DMatrix::identity(10, 10));
+    let pb = ConsistentProblem::new(
+        1,
+        0,
+        DMatrix::identity(10, 10),
+        DVector::zeros(10),
+        DMatrix::identity(10, 10),
+    );
     let fit = pb.solve().unwrap();
     assert!(fit.data_cost + fit.regulariser_cost <= fit.report.duality_gap);
     assert!(fit.params.amax() < 1e-4, "{}", fit.params);
     // Enormous but finite bounds.
-    let mut pb = ConsistentProblem::new(0, 1, DMatrix::zeros(0, 0), DVector::from_element(1, 2.0), DMatrix::identity(1, 1));
-    pb.bounds = vec![EffectBound { effect: 0, lo: -f64::MAX, hi: f64::MAX }];
+    let mut pb = ConsistentProblem::new(
+        0,
+        1,
+        DMatrix::zeros(0, 0),
+        DVector::from_element(1, 2.0),
+        DMatrix::identity(1, 1),
+    );
+    pb.bounds = vec![EffectBound {
+        effect: 0,
+        lo: -f64::MAX,
+        hi: f64::MAX,
+    }];
     let fit = pb.solve().unwrap();
     assert!((fit.effects[0] - 2.0).abs() < 1e-5);
 }
