@@ -331,7 +331,7 @@ impl fmt::Display for ParamsErrorKind {
             ),
             ParamsErrorKind::Velocity { key, joint, zero_ok } => write!(
                 f,
-                "joint {joint}: `{key}` must be {} (a velocity in rad/s or m/s)",
+                "joint {joint}: `{key}` must be {} — it is a velocity in rad/s or m/s",
                 if *zero_ok { "0 (exact sign) or positive" } else { "positive" }
             ),
             ParamsErrorKind::UnknownEffect { name, suggestion } => {

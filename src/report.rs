@@ -20,10 +20,12 @@ use std::path::{Path, PathBuf};
 use plotters::prelude::*;
 use serde_json::{json, Value};
 
+use crate::dh::DhTable;
 use crate::identify::{Errors, Outcome, Predictions, KEEP_RATE_PER_CUTOFF};
 use crate::io::{atomic_write, WriteError};
 
 pub mod leave_one_out;
+pub mod physical;
 
 /// Why a report could not be written.
 #[derive(Debug, thiserror::Error)]
@@ -39,8 +41,14 @@ pub enum ReportError {
     Plot { name: String, msg: String },
 }
 
-/// Files written, in order.
-pub fn write(dir: &Path, o: &Outcome, command: &str) -> Result<Vec<PathBuf>, ReportError> {
+/// Files written, in order. `table` (the arm's D-H table, when it has one) is for
+/// `identified.urdf`.
+pub fn write(
+    dir: &Path,
+    o: &Outcome,
+    command: &str,
+    table: Option<&DhTable>,
+) -> Result<Vec<PathBuf>, ReportError> {
     // Render everything first: nothing is written if any part fails.
     let mut files: Vec<(String, Vec<u8>)> = Vec::new();
     let mut plots = Vec::new();
@@ -74,6 +82,16 @@ pub fn write(dir: &Path, o: &Outcome, command: &str) -> Result<Vec<PathBuf>, Rep
         "report.md".into(),
         markdown(o, command, &plots).into_bytes(),
     ));
+    if let Some(text) = physical::params_toml(o, command) {
+        files.push(("identified.params.toml".into(), text.into_bytes()));
+    }
+    if let Some(urdf) = physical::urdf(o, table) {
+        let urdf = urdf.map_err(|msg| ReportError::Plot {
+            name: "identified.urdf".into(),
+            msg,
+        })?;
+        files.push(("identified.urdf".into(), urdf.into_bytes()));
+    }
 
     std::fs::create_dir_all(dir).map_err(|source| ReportError::Dir {
         path: dir.to_path_buf(),
@@ -151,7 +169,8 @@ pub fn json_report(o: &Outcome, command: &str) -> Value {
         "time_blocks": o.blocks,
         "friction_scales": o.scales,
         "cutoff_scan": o.cutoff_scan,
-        "estimator": "weighted least squares (per-joint 1/sigma), incremental QR, parallel zero-phase filtering of tau and regressor; std by block jackknife; no physical-consistency constraints",
+        "estimator": "weighted least squares (per-joint 1/sigma), incremental QR, parallel zero-phase filtering of tau and regressor; std by block jackknife; then the physically consistent estimate closest to it in the same weighted metric (`physical`)",
+        "physical": physical::json(o),
         "command": command,
     })
 }
@@ -162,20 +181,30 @@ fn prediction_csv(p: &Predictions, w: &mut dyn std::io::Write) -> std::io::Resul
     let n = p.dof;
     let mut w = std::io::BufWriter::new(w);
     write!(w, "t")?;
-    for prefix in ["tau", "before", "after"] {
+    let prefixes: &[&str] = if p.consistent {
+        &["tau", "before", "after", "consistent"]
+    } else {
+        &["tau", "before", "after"]
+    };
+    for prefix in prefixes {
         for j in 1..=n {
             write!(w, ",{prefix}{j}")?;
         }
     }
     writeln!(w)?;
     let mut res = Ok(());
-    p.rows(0, p.len(), |t, tau, before, after| {
+    p.rows(0, p.len(), |t, tau, before, after, consistent| {
         // `{}` prints the shortest representation that parses back to the same f64, so t and tau
         // are the values read from the validation file.
         if res.is_ok() {
             res = (|| {
                 write!(w, "{t}")?;
-                for v in tau.iter().chain(before).chain(after) {
+                for v in tau
+                    .iter()
+                    .chain(before)
+                    .chain(after)
+                    .chain(consistent.into_iter().flatten())
+                {
                     write!(w, ",{v}")?;
                 }
                 writeln!(w)
@@ -237,13 +266,14 @@ pub fn markdown(o: &Outcome, command: &str, plots: &[String]) -> String {
     steps_section(&mut m, o);
     evidence_section(&mut m, o);
     parameters_section(&mut m, o);
+    physical::section(&mut m, o);
     data_section(&mut m, o);
     let _ = writeln!(m, "\n## Plots\n");
     for p in plots {
         let _ = writeln!(m, "![{p}]({p})\n");
     }
     if o.predictions.is_some() {
-        let _ = writeln!(m, "`validation_prediction.csv`: `t`, measured `tau`, and the torques predicted by the declared (`before`) and augmented (`after`) models at every validation sample used; the errors above can be recomputed from it.");
+        let _ = writeln!(m, "`validation_prediction.csv`: `t`, measured `tau`, and the torques predicted by the declared (`before`) and augmented (`after`) models{} at every validation sample used; the errors above can be recomputed from it.", if o.consistent.is_some() { " and the physically consistent estimate (`consistent`)" } else { "" });
     }
     m
 }

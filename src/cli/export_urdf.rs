@@ -36,9 +36,22 @@ pub fn run(args: &Args) -> Result<()> {
             for w in &p.warnings {
                 eprintln!("warning: {w}");
             }
-            if !p.effects.is_empty() {
+            let e = &p.effects;
+            let dropped: Vec<&str> = [
+                ("stribeck", e.stribeck.is_some()),
+                ("armature", e.armature.is_some()),
+                ("offset", e.offset.is_some()),
+                ("spring", e.spring.is_some()),
+                ("loadcoulomb", e.loadcoulomb.is_some()),
+                ("sign_velocity", e.sign_velocity.is_some()),
+            ]
+            .into_iter()
+            .filter_map(|(k, present)| present.then_some(k))
+            .collect();
+            if !dropped.is_empty() {
                 eprintln!(
-                    "note: [effects] are not part of a URDF's inertial data and are not exported"
+                    "note: viscous and Coulomb friction are exported as <dynamics damping friction>; URDF has no place for {} — they are not exported",
+                    dropped.join(", ")
                 );
             }
             Some(p)

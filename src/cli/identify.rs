@@ -53,6 +53,15 @@ pub struct Args {
     /// Rotate through the --data files, holding each out for validation in turn.
     #[arg(long)]
     pub leave_one_out: bool,
+    /// The physically consistent estimate (every link a possible rigid body, friction and rotor
+    /// inertia >= 0), reported beside least squares and written as identified.params.toml /
+    /// identified.urdf: `on` or `off`.
+    #[arg(long, default_value = "on", value_parser = ["on", "off"])]
+    pub physical: String,
+    /// Parameters (params TOML, e.g. the CAD values `import-urdf` writes) that the consistent
+    /// estimate is pulled towards where the data cannot decide; default: towards zero.
+    #[arg(long)]
+    pub prior: Option<PathBuf>,
 }
 
 #[derive(Debug, Clone, Copy, clap::ValueEnum)]
@@ -61,6 +70,28 @@ pub enum DerivativeArg {
     Butterworth,
     /// Savitzky–Golay (quintic) matched to the cut-off.
     Savgol,
+}
+
+impl DerivativeArg {
+    pub fn method(self) -> Method {
+        match self {
+            DerivativeArg::Butterworth => Method::Butterworth,
+            DerivativeArg::Savgol => Method::SavitzkyGolay,
+        }
+    }
+}
+
+/// `--cutoff`: a positive number of Hz, or `auto` (`None`).
+pub fn parse_cutoff(s: &str) -> Result<Option<f64>, InputError> {
+    match s.trim() {
+        "auto" => Ok(None),
+        s => match s.parse::<f64>() {
+            Ok(f) if f.is_finite() && f > 0.0 => Ok(Some(f)),
+            _ => Err(InputError(format!(
+                "--cutoff: `{s}` is not a positive number of Hz or `auto`"
+            ))),
+        },
+    }
 }
 
 fn command_line(args: &Args) -> String {
@@ -88,6 +119,12 @@ fn command_line(args: &Args) -> String {
     if args.leave_one_out {
         c += " --leave-one-out";
     }
+    if args.physical == "off" {
+        c += " --physical off";
+    }
+    if let Some(p) = &args.prior {
+        let _ = write!(c, " --prior {}", p.display());
+    }
     c
 }
 
@@ -95,18 +132,7 @@ pub fn run(args: &Args) -> Result<()> {
     let arm = resolve(&args.arm)?;
     let dof = arm.dof();
     let effects = parse_list(&args.effects, dof).map_err(InputError)?;
-    let cutoff_hz = match args.cutoff.trim() {
-        "auto" => None,
-        s => match s.parse::<f64>() {
-            Ok(f) if f.is_finite() && f > 0.0 => Some(f),
-            _ => {
-                return Err(InputError(format!(
-                    "--cutoff: `{s}` is not a positive number of Hz or `auto`"
-                ))
-                .into())
-            }
-        },
-    };
+    let cutoff_hz = parse_cutoff(&args.cutoff)?;
     let smoothing = match args.smoothing.trim() {
         "auto" => None,
         s => Some(
@@ -116,14 +142,12 @@ pub fn run(args: &Args) -> Result<()> {
     let cfg = Config {
         smoothing,
         derivative: crate::derivative::Options {
-            method: match args.derivative {
-                DerivativeArg::Butterworth => Method::Butterworth,
-                DerivativeArg::Savgol => Method::SavitzkyGolay,
-            },
+            method: args.derivative.method(),
             cutoff_hz,
         },
         file_velocity: !args.ignore_file_velocity,
         effects,
+        physical: physical_options(args, dof)?,
         ..Config::default()
     };
     let load = |p: &Path| Log::open(p, Some(dof));
@@ -147,18 +171,52 @@ pub fn run(args: &Args) -> Result<()> {
             .into());
         }
         let outs = identify::leave_one_out(&arm, train, &cfg).map_err(bad)?;
-        let summary = crate::report::leave_one_out::write(&args.out, &outs, &command)
-            .context("writing the leave-one-out report")?;
+        let table = arm.dh_table().ok();
+        let summary =
+            crate::report::leave_one_out::write(&args.out, &outs, &command, table.as_ref())
+                .context("writing the leave-one-out report")?;
         print!("{summary}");
         return Ok(());
     }
     let val = args.validate.as_deref().map(load).transpose()?;
     let outcome = identify::run(&arm, train, val, &cfg).map_err(bad)?;
-    let files =
-        crate::report::write(&args.out, &outcome, &command).context("writing the report")?;
+    let table = arm.dh_table().ok();
+    let files = crate::report::write(&args.out, &outcome, &command, table.as_ref())
+        .context("writing the report")?;
     print_summary(&outcome);
     eprintln!("wrote {} files to {}", files.len(), args.out.display());
     Ok(())
+}
+
+/// `--physical` and `--prior`: the prior must be a physically consistent params file of this arm.
+fn physical_options(args: &Args, dof: usize) -> Result<identify::physical::PhysicalOptions> {
+    let prior = match &args.prior {
+        Some(path) => {
+            let p = crate::params::InertialParams::from_path(
+                path,
+                dof,
+                &crate::params::ParamsOptions::default(),
+            )
+            .map_err(|e| {
+                InputError(format!(
+                    "--prior: {e} — the prior must be a physically consistent parameter file of this arm"
+                ))
+            })?;
+            Some(p.full_vector())
+        }
+        None => None,
+    };
+    if prior.is_some() && args.physical == "off" {
+        return Err(InputError(
+            "--prior needs the consistent estimate: drop `--physical off`".into(),
+        )
+        .into());
+    }
+    Ok(identify::physical::PhysicalOptions {
+        enabled: args.physical == "on",
+        prior,
+        prior_source: args.prior.as_ref().map(|p| format!("`{}`", p.display())),
+    })
 }
 
 fn print_summary(o: &Outcome) {
@@ -179,6 +237,10 @@ fn print_summary(o: &Outcome) {
     };
     show("before (rigid)", &o.before);
     show("after", &o.after);
+    if let Some(c) = &o.consistent {
+        show("physically consistent", c);
+    }
+    println!("{}", crate::report::physical::verdict(o).replace("**", ""));
     if let Some(f) = o.train.first() {
         println!(
             "filters: cut-off {:.2} Hz, {}",

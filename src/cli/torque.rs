@@ -1,5 +1,10 @@
 //! `dynid torque --arm A --params P --data D [--out F]`: inverse dynamics along a trajectory.
 //!
+//! A log without `dq`/`ddq` columns (a measured one) gets them from the estimator
+//! `dynid identify` uses (`--cutoff`, `--derivative`; a `dq` column is filtered), evaluated at
+//! the log's own sample times; the positions are then the filtered ones too, as in
+//! identification's predictions "from estimated states".
+//!
 //! A registered arm uses its generated kernels (`base_params(p)`, then `inverse_dynamics`); a
 //! path to a D-H table uses the reference recursive Newton–Euler. Effects from the parameter
 //! file (`[effects]`) are added per joint. Output: CSV `t,tau1..taun`, atomically to `--out` or
@@ -9,7 +14,7 @@ use std::path::PathBuf;
 
 use anyhow::Result;
 
-use super::write_output;
+use super::{write_output, InputError};
 use crate::arms::{resolve, ArmSource};
 use crate::data::{write_header, write_row, Trajectory};
 use crate::params::{InertialParams, ParamsOptions};
@@ -32,6 +37,13 @@ pub struct Args {
     /// Accept physically impossible inertial parameters (with a warning).
     #[arg(long)]
     pub allow_nonphysical: bool,
+    /// Without dq/ddq columns: the estimator's low-pass cut-off in Hz, or `auto` (from the
+    /// spectrum). Use the cut-off an identification report names to reproduce its predictions.
+    #[arg(long, default_value = "auto")]
+    pub cutoff: String,
+    /// Without dq/ddq columns: the derivative estimator.
+    #[arg(long, value_enum, default_value = "butterworth")]
+    pub derivative: super::identify::DerivativeArg,
 }
 
 pub fn run(args: &Args) -> Result<()> {
@@ -44,7 +56,10 @@ pub fn run(args: &Args) -> Result<()> {
     for w in &params.warnings {
         eprintln!("warning: {w}");
     }
-    let traj = Trajectory::from_path(&args.data, Some(dof))?;
+    let mut traj = Trajectory::from_path(&args.data, Some(dof))?;
+    if traj.dq.is_none() || traj.ddq.is_none() {
+        estimate_states(&mut traj, args)?;
+    }
     traj.require(true, true, false, "inverse dynamics")?;
 
     let tau = torques(&arm, &params, &traj);
@@ -61,6 +76,47 @@ pub fn run(args: &Args) -> Result<()> {
         }
         Ok(())
     })
+}
+
+/// Replaces `q` by its filtered estimate and fills `dq`, `ddq` at the log's sample times.
+fn estimate_states(traj: &mut Trajectory, args: &Args) -> Result<()> {
+    let cutoff_hz = super::identify::parse_cutoff(&args.cutoff)?;
+    let opts = crate::derivative::Options {
+        method: args.derivative.method(),
+        cutoff_hz,
+    };
+    let n = traj.dof;
+    let cols = |v: &[f64]| -> Vec<Vec<f64>> {
+        (0..n)
+            .map(|j| v.iter().skip(j).step_by(n).copied().collect())
+            .collect()
+    };
+    let q = cols(&traj.q);
+    let dq = traj.dq.as_deref().map(cols);
+    let est = crate::derivative::estimate(&traj.t, &q, dq.as_deref(), &opts)
+        .map_err(|e| InputError(format!("{}: {e}", args.data.display())))?;
+    eprintln!(
+        "{}: no q̇/q̈ columns — estimated with {} (cut-off {:.4} Hz{})",
+        args.data.display(),
+        est.report.filter,
+        est.report.cutoff_hz,
+        if est.report.cutoff_auto {
+            ", automatic"
+        } else {
+            ""
+        }
+    );
+    let len = traj.len();
+    let (mut qs, mut dqs, mut ddqs) = (vec![0.0; len * n], vec![0.0; len * n], vec![0.0; len * n]);
+    for (k, &t) in traj.t.iter().enumerate() {
+        for j in 0..n {
+            (qs[k * n + j], dqs[k * n + j], ddqs[k * n + j]) = est.at(j, t);
+        }
+    }
+    traj.q = qs;
+    traj.dq = Some(dqs);
+    traj.ddq = Some(ddqs);
+    Ok(())
 }
 
 /// Joint torques for every sample (row-major), effects included.

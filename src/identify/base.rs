@@ -271,6 +271,22 @@ impl BaseModel {
         }
     }
 
+    /// The base-parameter map `K` (`nb × 10·dof`, `θ = K·p`), column `c` the base parameters of
+    /// the unit vector `e_c` (the map is linear).
+    pub fn base_map(&self) -> DMatrix<f64> {
+        let np = 10 * self.dof();
+        let mut k = DMatrix::zeros(self.nb(), np);
+        let mut e = vec![0.0; np];
+        for c in 0..np {
+            e[c] = 1.0;
+            for (r, v) in self.base_params(&e).into_iter().enumerate() {
+                k[(r, c)] = v;
+            }
+            e[c] = 0.0;
+        }
+        k
+    }
+
     /// Base parameters of full parameters `p`.
     pub fn base_params(&self, p: &[f64]) -> Vec<f64> {
         match self {

@@ -52,6 +52,7 @@ mod layout;
 mod load_stage;
 pub mod ls;
 mod outcome;
+pub mod physical;
 mod predict;
 mod prepare;
 mod problem;
@@ -152,6 +153,8 @@ pub struct Config {
     pub blocks: usize,
     /// Regression filter and prediction; `None` = chosen by the scan with the cut-off.
     pub smoothing: Option<Smoothing>,
+    /// Stage 8: the physically consistent estimate.
+    pub physical: physical::PhysicalOptions,
 }
 
 impl Default for Config {
@@ -163,6 +166,7 @@ impl Default for Config {
             rules: Rules::default(),
             blocks: 20,
             smoothing: None,
+            physical: physical::PhysicalOptions::default(),
         }
     }
 }
@@ -295,16 +299,23 @@ pub fn leave_one_out(
 
 /// Pooled validation error over a leave-one-out study: `‖τ̂−τ‖/‖τ‖` over all held-out files,
 /// per joint and overall, for the `before` and `after` models.
-pub fn pooled_validation(outcomes: &[Outcome]) -> Option<(Errors, Errors)> {
+/// Validation errors pooled over the folds' validation files: before, after and — when every
+/// fold has it — the consistent estimate.
+pub fn pooled_validation(outcomes: &[Outcome]) -> Option<(Errors, Errors, Option<Errors>)> {
     let n = outcomes.first()?.dof;
-    let mut acc = [vec![0.0; n], vec![0.0; n]];
+    let mut acc = [vec![0.0; n], vec![0.0; n], vec![0.0; n]];
     let mut tss = vec![0.0; n];
+    let mut all_consistent = true;
     for o in outcomes {
         let p = o.predictions.as_ref()?;
-        p.rows(0, p.len(), |_, tau, before, after| {
+        all_consistent &= p.consistent;
+        p.rows(0, p.len(), |_, tau, before, after, consistent| {
             for j in 0..n {
                 acc[0][j] += (before[j] - tau[j]).powi(2);
                 acc[1][j] += (after[j] - tau[j]).powi(2);
+                if let Some(c) = consistent {
+                    acc[2][j] += (c[j] - tau[j]).powi(2);
+                }
                 tss[j] += tau[j].powi(2);
             }
         });
@@ -313,5 +324,9 @@ pub fn pooled_validation(outcomes: &[Outcome]) -> Option<(Errors, Errors)> {
         per_joint: (0..n).map(|j| (s[j] / tss[j]).sqrt()).collect(),
         overall: (s.iter().sum::<f64>() / tss.iter().sum::<f64>()).sqrt(),
     };
-    Some((mk(&acc[0]), mk(&acc[1])))
+    Some((
+        mk(&acc[0]),
+        mk(&acc[1]),
+        all_consistent.then(|| mk(&acc[2])),
+    ))
 }

@@ -8,6 +8,7 @@ use super::evaluate::{raw_sums, Errors, Judged, ModelResult};
 use super::layout::{Layout, Merged};
 use super::load_stage::{load_model, LoadModel};
 use super::ls;
+use super::physical::{self, Physical};
 use super::predict::{make_series, predictions, Predictions, Series};
 use super::prepare::{Prepared, Smoothing};
 use super::problem::{with_hint, Problem};
@@ -111,6 +112,12 @@ pub struct Outcome {
     pub series: Series,
     #[serde(skip)]
     pub predictions: Option<Predictions>,
+    /// Stage 8: the physically consistent estimate (none when switched off or failed).
+    pub physical: Option<Physical>,
+    /// Why stage 8 failed (the least-squares result stands).
+    pub physical_error: Option<String>,
+    /// The consistent estimate judged like `after` (its held-out error is not computed: NaN).
+    pub consistent: Option<ModelResult>,
 }
 
 /// Stage 7: the outcome of an identification whose effects are selected (`selected`, the
@@ -132,12 +139,27 @@ pub(super) fn assemble(
     } = selected;
     let layout = &problem.layout;
     let models = Models::fit(&problem, train, &declared, &selection)?;
-    let (before, after, steps) = models.judge(base, &problem, train, val);
     let last = &models.fitted[1];
+    let (physical, physical_error) = if cfg.physical.enabled {
+        match physical::consistent(
+            &problem,
+            &base.base_map(),
+            &last.fit,
+            &last.w,
+            &cfg.physical,
+        ) {
+            Ok(p) => (Some(p), None),
+            Err(e) => (None, Some(e)),
+        }
+    } else {
+        (None, None)
+    };
+    let consistent_x = physical.as_ref().map(|p| p.x.as_slice());
+    let (before, after, consistent, steps) = models.judge(base, &problem, train, val, consistent_x);
     let (theta, effects) = estimates(layout, &selection, &after, &last.loo);
     let series = make_series(base, layout, train, val, &before, &after);
     let predictions = val
-        .map(|p| predictions(base, layout, p, &before, &after))
+        .map(|p| predictions(base, layout, p, &before, &after, consistent.as_ref()))
         .transpose()?;
     let sigma = last.w.iter().map(|w| 1.0 / w).collect();
     let load_model = load_model(layout, &selection.terms, &last.subset, &after.x);
@@ -172,6 +194,9 @@ pub(super) fn assemble(
         load_model,
         series,
         predictions,
+        physical,
+        physical_error,
+        consistent,
     })
 }
 
@@ -245,9 +270,10 @@ impl Models {
         problem: &Problem,
         train: &[Prepared],
         val: Option<&Prepared>,
-    ) -> (ModelResult, ModelResult, Vec<StepRow>) {
+        consistent: Option<&[f64]>,
+    ) -> (ModelResult, ModelResult, Option<ModelResult>, Vec<StepRow>) {
         let layout = &problem.layout;
-        let judged: Vec<Judged> = self
+        let mut judged: Vec<Judged> = self
             .fitted
             .iter()
             .map(|f| Judged {
@@ -256,6 +282,14 @@ impl Models {
                 loo: Some(&f.loo),
             })
             .collect();
+        // The consistent estimate last, on the final model's columns (no held-out refits).
+        if let Some(x) = consistent {
+            judged.push(Judged {
+                subset: &self.fitted[1].subset,
+                x: Some(x),
+                loo: None,
+            });
+        }
         let train_sums = raw_sums(base, layout, train, Some(problem.raw_blocks()), &judged);
         let val_sums = val.map(|p| raw_sums(base, layout, std::slice::from_ref(p), None, &judged));
         let result = |m: usize| ModelResult {
@@ -268,6 +302,17 @@ impl Models {
         };
         let before = result(0);
         let after = result(1);
+        let consistent = consistent.map(|x| {
+            let m = self.fitted.len();
+            ModelResult {
+                terms: after.terms.clone(),
+                train: train_sums.errors(m),
+                validation: val_sums.as_ref().map(|v| v.errors(m)),
+                heldout_rms: f64::NAN,
+                subset: self.fitted[1].subset.clone(),
+                x: x.to_vec(),
+            }
+        });
         let mut steps = vec![StepRow {
             model: "rigid".into(),
             added: None,
@@ -292,7 +337,7 @@ impl Models {
                 validation: m.validation,
             });
         }
-        (before, after, steps)
+        (before, after, consistent, steps)
     }
 }
 

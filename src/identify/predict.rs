@@ -113,10 +113,12 @@ pub struct Series {
 
 /// The rows of `validation_prediction.csv`: per validation sample used, its time, then the
 /// measured τ and the torques predicted by the declared (`before`) and augmented (`after`)
-/// models, n each — in a [`Table`] (a long validation log's spill to a temporary file).
+/// models and, when stage 8 ran, the consistent estimate, n each — in a [`Table`] (a long validation log's spill to a temporary file).
 #[derive(Debug, Clone)]
 pub struct Predictions {
     pub dof: usize,
+    /// Whether the rows hold the consistent estimate's torques after the final model's.
+    pub consistent: bool,
     table: Arc<Table>,
 }
 
@@ -129,25 +131,38 @@ impl Predictions {
         self.table.is_empty()
     }
 
-    /// Calls `f(t, tau, before, after)` for rows `a..b` in order.
-    pub fn rows(&self, a: usize, b: usize, mut f: impl FnMut(f64, &[f64], &[f64], &[f64])) {
+    /// Calls `f(t, tau, before, after, consistent)` for rows `a..b` in order.
+    pub fn rows(
+        &self,
+        a: usize,
+        b: usize,
+        mut f: impl FnMut(f64, &[f64], &[f64], &[f64], Option<&[f64]>),
+    ) {
         let n = self.dof;
+        let c = self.consistent;
         self.table.rows(a, b, |r| {
-            f(r[0], &r[1..1 + n], &r[1 + n..1 + 2 * n], &r[1 + 2 * n..])
+            let consistent = c.then(|| &r[1 + 3 * n..1 + 4 * n]);
+            f(
+                r[0],
+                &r[1..1 + n],
+                &r[1 + n..1 + 2 * n],
+                &r[1 + 2 * n..1 + 3 * n],
+                consistent,
+            )
         });
     }
 }
 
-/// Calls `f(t, dq, tau, before, after)` for every `stride`-th used raw sample of `p`, with
-/// the predictions of both models (see [`Predicted`]), the estimated q̇ at the
+/// Calls `f(t, dq, tau, preds)` for every `stride`-th used raw sample of `p`, with the
+/// predictions of each model (see [`Predicted`]; `preds[m]` per joint), the estimated q̇ at the
 /// sample and its measured τ.
 pub(super) fn for_predictions(
     base: &BaseModel,
     layout: &Layout,
     p: &Prepared,
-    models: [&ModelResult; 2],
+    models: &[&ModelResult],
     stride: usize,
-    mut f: impl FnMut(f64, &[f64], &[f64], &[f64], &[f64]),
+    mut f: impl FnMut(f64, &[f64], &[f64], &[Vec<f64>]),
 ) {
     let n = layout.dof;
     let active: Vec<Vec<usize>> = (0..n).map(|j| layout.active(j)).collect();
@@ -159,10 +174,12 @@ pub(super) fn for_predictions(
                 .collect()
         })
         .collect();
+    let wanted = vec![true; models.len()];
     let mut rows = Rows::new(base, layout);
-    let (mut dq, mut pb, mut pa) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+    let mut dq = vec![0.0; n];
+    let mut preds = vec![vec![0.0; n]; models.len()];
     for core in raw_cores(p) {
-        let pc = Predicted::new(p, &mut rows, &active, core, &coef, &[true, true]);
+        let pc = Predicted::new(p, &mut rows, &active, core, &coef, &wanted);
         raw_in_core(p, core, stride, |_, t, tau, (k, s)| {
             for j in 0..n {
                 let (d, i) = (&pc.states.dq[j], k - pc.lo);
@@ -171,10 +188,11 @@ pub(super) fn for_predictions(
                 } else {
                     d[i]
                 };
-                pb[j] = pc.at(0, j, (k, s));
-                pa[j] = pc.at(1, j, (k, s));
+                for (m, pm) in preds.iter_mut().enumerate() {
+                    pm[j] = pc.at(m, j, (k, s));
+                }
             }
-            f(t, &dq, tau, &pb, &pa);
+            f(t, &dq, tau, &preds);
         });
     }
 }
@@ -196,12 +214,12 @@ pub(super) fn make_series(
             base,
             layout,
             p,
-            [before, after],
+            &[before, after],
             stride,
-            |_, dq, tau, pb, pa| {
+            |_, dq, tau, pr| {
                 for j in 0..n {
-                    rv[j].0.push((dq[j], tau[j] - pb[j]));
-                    rv[j].1.push((dq[j], tau[j] - pa[j]));
+                    rv[j].0.push((dq[j], tau[j] - pr[0][j]));
+                    rv[j].1.push((dq[j], tau[j] - pr[1][j]));
                 }
             },
         );
@@ -213,11 +231,11 @@ pub(super) fn make_series(
             base,
             layout,
             p,
-            [before, after],
+            &[before, after],
             stride,
-            |t, _, tau, pb, pa| {
+            |t, _, tau, pr| {
                 for j in 0..n {
-                    validation[j].push((t, tau[j], pb[j], pa[j]));
+                    validation[j].push((t, tau[j], pr[0][j], pr[1][j]));
                 }
             },
         );
@@ -234,14 +252,17 @@ pub(super) fn predictions(
     p: &Prepared,
     before: &ModelResult,
     after: &ModelResult,
+    consistent: Option<&ModelResult>,
 ) -> Result<Predictions, IdentifyError> {
     let n = layout.dof;
-    let mut table = TableWriter::new(1 + 3 * n, SPILL_ROWS);
-    let (mut row, mut failed) = (Vec::with_capacity(1 + 3 * n), None);
-    for_predictions(base, layout, p, [before, after], 1, |t, _, tau, pb, pa| {
+    let models: Vec<&ModelResult> = [before, after].into_iter().chain(consistent).collect();
+    let width = 1 + (1 + models.len()) * n;
+    let mut table = TableWriter::new(width, SPILL_ROWS);
+    let (mut row, mut failed) = (Vec::with_capacity(width), None);
+    for_predictions(base, layout, p, &models, 1, |t, _, tau, pr| {
         row.clear();
         row.push(t);
-        row.extend(tau.iter().chain(pb).chain(pa));
+        row.extend(tau.iter().chain(pr.iter().flatten()));
         if let Err(e) = table.push(&row) {
             failed.get_or_insert(e);
         }
@@ -253,6 +274,7 @@ pub(super) fn predictions(
     .map_err(IdentifyError::Spill)?;
     Ok(Predictions {
         dof: n,
+        consistent: consistent.is_some(),
         table: Arc::new(table),
     })
 }

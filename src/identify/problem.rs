@@ -177,6 +177,23 @@ impl Problem {
         ls::solve(&self.total_factors(w), subset).map_err(|e| self.rank_error(&e.dependent))
     }
 
+    /// The weighted normal equations of `subset` over the full training set: `N = Σⱼ wⱼ²·Aⱼᵀ Aⱼ`
+    /// and `Σⱼ wⱼ²·Aⱼᵀτⱼ`, in `subset` order (from the factors: `AⱼᵀAⱼ = RⱼᵀRⱼ` restricted to the
+    /// columns). `(x − x̂)ᵀN(x − x̂)` is how much the weighted residual of `x` exceeds the fit's.
+    pub fn normal_equations(&self, subset: &[usize], w: &[f64]) -> (DMatrix<f64>, DVector<f64>) {
+        let k = subset.len();
+        let (mut n, mut b) = (DMatrix::zeros(k, k), DVector::zeros(k));
+        for (j, acc) in self.total.iter().enumerate() {
+            let r = acc.r();
+            let t = r.ncols() - 1;
+            let a = DMatrix::from_fn(r.nrows(), k, |i, c| r[(i, subset[c])]);
+            let w2 = w[j] * w[j];
+            n += a.tr_mul(&a) * w2;
+            b += a.tr_mul(&r.column(t).into_owned()) * w2;
+        }
+        (n, b)
+    }
+
     /// Per-joint weights `1/σⱼ` from the residual of the model (OLS, then one WLS pass).
     pub fn weights(&self, subset: &[usize]) -> Result<Vec<f64>, RankError> {
         let n = self.layout.dof;

@@ -5,19 +5,25 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use super::ReportError;
+use crate::dh::DhTable;
 use crate::identify::{pooled_validation, Outcome};
 use crate::io::atomic_write;
 
 /// Writes the study's reports into `dir` (each fold's, then the summary); returns the summary
 /// table (`leave_one_out.md`) for the terminal.
-pub fn write(dir: &Path, outs: &[Outcome], command: &str) -> Result<String, ReportError> {
+pub fn write(
+    dir: &Path,
+    outs: &[Outcome],
+    command: &str,
+    table: Option<&DhTable>,
+) -> Result<String, ReportError> {
     let mut md = String::from("# Leave-one-out identification\n\n");
     let _ = writeln!(md, "Reproduce: `{command}`\n");
     let _ = writeln!(
         md,
-        "| held-out file | effects found | cut-off (Hz) | regression filter, prediction | validation before | validation after |"
+        "| held-out file | effects found | cut-off (Hz) | regression filter, prediction | validation before | validation after | consistent |"
     );
-    let _ = writeln!(md, "|---|---|---|---|---|---|");
+    let _ = writeln!(md, "|---|---|---|---|---|---|---|");
     let mut rows = Vec::new();
     let mut reports = Vec::new();
     for o in outs {
@@ -31,17 +37,23 @@ pub fn write(dir: &Path, outs: &[Outcome], command: &str) -> Result<String, Repo
             o.before.validation.as_ref().map_or(f64::NAN, |e| e.overall),
             o.after.validation.as_ref().map_or(f64::NAN, |e| e.overall),
         );
+        let c = o
+            .consistent
+            .as_ref()
+            .and_then(|c| c.validation.as_ref())
+            .map_or(f64::NAN, |e| e.overall);
         let fc = o.train.first().map_or(f64::NAN, |f| f.derivative.cutoff_hz);
         let sm = o.train.first().map(|f| f.smoothing).unwrap_or_default();
         let _ = writeln!(
             md,
-            "| `{v}` | {} | {fc:.2} | {} | {:.2} % | {:.2} % |",
+            "| `{v}` | {} | {fc:.2} | {} | {:.2} % | {:.2} % | {:.2} % |",
             found.join(", "),
             sm.label(),
             100.0 * b,
-            100.0 * a
+            100.0 * a,
+            100.0 * c
         );
-        rows.push(serde_json::json!({"heldout": v, "effects_found": found, "cutoff_hz": fc, "smoothing": sm, "validation_before": o.before.validation, "validation_after": o.after.validation, "steps": o.steps}));
+        rows.push(serde_json::json!({"heldout": v, "effects_found": found, "cutoff_hz": fc, "smoothing": sm, "validation_before": o.before.validation, "validation_after": o.after.validation, "validation_consistent": o.consistent.as_ref().and_then(|c| c.validation.as_ref()), "least_squares_consistent": o.physical.as_ref().map(|p| p.least_squares_consistent), "steps": o.steps}));
         let stem = Path::new(&v)
             .file_name()
             .map(|s| {
@@ -53,12 +65,20 @@ pub fn write(dir: &Path, outs: &[Outcome], command: &str) -> Result<String, Repo
         reports.push((dir.join(format!("heldout_{stem}")), o));
     }
     let pooled = pooled_validation(outs);
-    if let Some((b, a)) = &pooled {
+    if let Some((b, a, c)) = &pooled {
         let _ = writeln!(md, "\nPooled over all held-out files (‖τ̂−τ‖/‖τ‖ against the measured torque): before {:.2} %, after {:.2} % (per joint before {:?}, after {:?}).", 100.0 * b.overall, 100.0 * a.overall, b.per_joint, a.per_joint);
+        if let Some(c) = c {
+            let _ = writeln!(
+                md,
+                "The physically consistent estimate, pooled: {:.2} % (per joint {:?}).",
+                100.0 * c.overall,
+                c.per_joint
+            );
+        }
     }
-    let json = serde_json::json!({"folds": rows, "pooled": pooled.map(|(b, a)| serde_json::json!({"before": b, "after": a})), "command": command});
+    let json = serde_json::json!({"folds": rows, "pooled": pooled.map(|(b, a, c)| serde_json::json!({"before": b, "after": a, "consistent": c})), "command": command});
     for (d, o) in &reports {
-        super::write(d, o, command)?;
+        super::write(d, o, command, table)?;
     }
     atomic_write(&dir.join("leave_one_out.md"), |w| {
         w.write_all(md.as_bytes())

@@ -6,12 +6,13 @@
 //! is not along −z of frame 0, a `world` root link is added, rotated so that it is: importing
 //! the file again with the default gravity then gives the arm's gravity direction back (its
 //! magnitude too when it is 9.81 m/s²; otherwise pass `--gravity 0,0,-|g|`, as the file's comment
-//! says).
+//! says). Viscous and Coulomb friction of the params file's `[effects]` become each joint's
+//! `<dynamics damping friction>`; URDF has no place for the other effects.
 
 use nalgebra::{Matrix3, Vector3};
 use urdf_rs::{
-    Axis, Inertia, Inertial, Joint as UJoint, JointLimit, JointType, Link, LinkName, Mass,
-    Pose as UPose, Robot, Vec3,
+    Axis, Dynamics, Inertia, Inertial, Joint as UJoint, JointLimit, JointType, Link, LinkName,
+    Mass, Pose as UPose, Robot, Vec3,
 };
 
 use super::geom::{matrix_to_rpy, Pose};
@@ -105,14 +106,16 @@ pub fn export(table: &DhTable, params: Option<&InertialParams>) -> Result<String
             jerk: f64::INFINITY,
         };
         let (parent, child) = (format!("link{i}"), format!("link{}", i + 1));
-        joints.push(joint(
+        let mut j = joint(
             format!("joint{}", i + 1),
             ty,
             &parent,
             &child,
             &origin,
             limit,
-        ));
+        );
+        j.dynamics = params.and_then(|p| dynamics(p, i));
+        joints.push(j);
     }
     let robot = Robot {
         name: table.name.clone(),
@@ -138,6 +141,20 @@ pub fn export(table: &DhTable, params: Option<&InertialParams>) -> Result<String
         "<?xml version=\"1.0\"?>\n<!-- Exported by `dynid export-urdf` from the modified D-H arm `{}`: linkI is D-H frame I,\n     jointI row I. Gravity {gravity} m/s² in frame 0; the root frame has it along -z{hint}. -->\n{body}\n",
         table.name
     ))
+}
+
+/// `<dynamics damping friction>` of joint `i`: the viscous and Coulomb coefficients, the effects
+/// URDF can carry (none when the parameters have neither).
+fn dynamics(p: &InertialParams, i: usize) -> Option<Dynamics> {
+    let e = &p.effects;
+    let at = |v: &Option<Vec<f64>>| v.as_ref().map(|v| v[i]);
+    match (at(&e.viscous), at(&e.coulomb)) {
+        (None, None) => None,
+        (d, f) => Some(Dynamics {
+            damping: d.unwrap_or(0.0),
+            friction: f.unwrap_or(0.0),
+        }),
+    }
 }
 
 /// Rotation from frame 0 to a root frame in which `g` points along −z (`None`: already does, or

@@ -168,7 +168,7 @@ fn spilled_logs_identify_exactly_like_held_ones() {
     assert_eq!(held.cutoff_scan, spilled.cutoff_scan);
     let rows = |p: &identify::Predictions| {
         let mut v = Vec::new();
-        p.rows(0, p.len(), |t, tau, b, a| {
+        p.rows(0, p.len(), |t, tau, b, a, _| {
             v.push(t);
             v.extend(tau.iter().chain(b).chain(a));
         });
@@ -244,7 +244,7 @@ fn dfki_leave_one_out() {
                 && found(o).contains(&"coulomb2".to_string())
         );
     }
-    let (b, a) = identify::pooled_validation(&outs).unwrap();
+    let (b, a, _) = identify::pooled_validation(&outs).unwrap();
     println!("pooled validation: before {b:?}\n                   after  {a:?}");
     // The bar: 0.29. Measured 0.2892 (0.366 before predictions went through the
     // filtered rows, 0.2929 before the second stage found load-dependent friction in one fold).
@@ -818,7 +818,7 @@ fn cli_identify_writes_report_and_recomputable_predictions() {
     let mut lines = csv.lines();
     assert_eq!(
         lines.next().unwrap(),
-        "t,tau1,tau2,before1,before2,after1,after2"
+        "t,tau1,tau2,before1,before2,after1,after2,consistent1,consistent2"
     );
     let rows: Vec<Vec<f64>> = lines
         .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
@@ -846,4 +846,13 @@ fn cli_identify_writes_report_and_recomputable_predictions() {
         "{} vs {reported}",
         (sse / tss).sqrt()
     );
+    // The same for the consistent estimate's columns.
+    let sse: f64 = rows
+        .iter()
+        .map(|r| (0..2).map(|j| (r[7 + j] - r[1 + j]).powi(2)).sum::<f64>())
+        .sum();
+    let reported = json["physical"]["error"]["validation"]["overall"]
+        .as_f64()
+        .unwrap();
+    assert!(((sse / tss).sqrt() - reported).abs() < 1e-9 * reported.max(1.0));
 }

@@ -8,5 +8,6 @@ mod kernels;
 mod loaders;
 mod new_arm;
 mod paper;
+mod physical;
 mod reference;
 mod urdf;
