@@ -101,20 +101,33 @@ pub fn json(o: &Outcome) -> Value {
 pub fn verdict(o: &Outcome) -> String {
     match (&o.physical, &o.physical_error) {
         (Some(p), _) => {
-            let ls = if p.least_squares_consistent {
-                "the least-squares estimate is physically consistent".to_string()
+            let links: Vec<&str> = p
+                .active
+                .iter()
+                .filter(|a| a.starts_with("link"))
+                .map(|a| a.split(':').next().unwrap_or(a))
+                .collect();
+            let boundary = if links.is_empty() {
+                String::new()
             } else {
                 format!(
-                    "the least-squares estimate is **not** physically consistent (the closest physical arm raises the weighted training residual by {})",
-                    pct(p.residual_increase)
+                    "; on the boundary of the physical set (a degenerate body: point mass, rod or plate): {}",
+                    links.join(", ")
                 )
             };
-            let binds = if p.active.is_empty() {
-                "no constraint binds".to_string()
+            if p.least_squares_consistent {
+                format!("**Physical consistency:** the least-squares estimate is physically consistent (the consistent estimate equals it){boundary}.")
             } else {
-                format!("binding: {}", p.active.join("; "))
-            };
-            format!("**Physical consistency:** {ls}; consistent estimate — {binds}.")
+                let binds = if p.active.is_empty() {
+                    "no constraint binds".to_string()
+                } else {
+                    format!("binding: {}", p.active.join("; "))
+                };
+                format!(
+                    "**Physical consistency:** the least-squares estimate is **not** physically consistent (the closest physical arm raises the weighted training residual by {}); consistent estimate — {binds}.",
+                    pct(p.residual_increase)
+                )
+            }
         }
         (None, Some(e)) => format!(
             "**Physical consistency:** not checked — the consistent fit failed: {e}. The least-squares result above stands."
