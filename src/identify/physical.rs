@@ -1,4 +1,4 @@
-//! Stage 8, **the physically consistent estimate** ([`consistent`]): the standard parameters of
+//! Stage 8, **the physically consistent estimate** (`consistent`): the standard parameters of
 //! every link (and the effect coefficients) closest to the final least-squares fit, in that
 //! fit's own weighted metric, such that every link is a possible rigid body (its pseudo-inertia
 //! positive semidefinite — Wensing, Kim & Slotine 2017) and friction and rotor inertia are not

@@ -2,7 +2,7 @@
 //! whose every link is a possible rigid body.
 //!
 //! **Variables.** `π` (`10·n_links` standard parameters, dynid's order per link, see
-//! [`super::pseudo_inertia`]) and `e` (`n_effects` effect coefficients). The least-squares fit
+//! [`super::pseudo_inertia`](mod@super::pseudo_inertia)) and `e` (`n_effects` effect coefficients). The least-squares fit
 //! is over `y = [θ; e]` with base parameters `θ = K·π` (`K` = [`ConsistentProblem::base_map`]).
 //!
 //! **Program** (Wensing, Kim & Slotine, IEEE RA-L 2017, with the effects of the friction model):
@@ -24,7 +24,7 @@
 //! unit-free with respect to the data's scaling and moves a well-determined direction of `y`
 //! by about a millionth (relative) of its value.
 //!
-//! **Solver**: the log-barrier interior-point method of [`super::barrier`] (pure Rust, dense
+//! **Solver**: the log-barrier interior-point method of `super::barrier` (pure Rust, dense
 //! Newton steps equilibrated internally). Every link of the answer satisfies `J ⪰ E` exactly,
 //! and the answer's cost is within [`SolveReport::duality_gap`] of the optimum
 //! (`≤ gap_tol·ŷᵀNŷ`).

@@ -3,7 +3,7 @@
 //!
 //! | file | what |
 //! |---|---|
-//! | [`pseudo_inertia`] | one link's 4×4 pseudo-inertia `J`, its `svec`, and [`LinkPhysics`] (mass, centre of mass, principal moments, consistency) |
+//! | [`pseudo_inertia`](mod@pseudo_inertia) | one link's 4×4 pseudo-inertia `J`, its `svec`, and [`LinkPhysics`] (mass, centre of mass, principal moments, consistency) |
 //! | [`consistent`] | the program — closest parameters in the least-squares metric with every `J ⪰ 0`, effect signs and bounds — its inputs, answer and errors |
 //! | `barrier.rs` | the solver: a log-barrier interior-point method with dense, equilibrated Newton steps |
 //! | `start.rs` | its strictly feasible start |

@@ -76,7 +76,7 @@ pub fn pseudo_inertia(p: &LinkParams) -> Matrix4<f64> {
     j
 }
 
-/// The parameters of a pseudo-inertia (the inverse of [`pseudo_inertia`]; only the upper
+/// The parameters of a pseudo-inertia (the inverse of [`pseudo_inertia()`]; only the upper
 /// triangle of `j` is read).
 pub fn params_from_pseudo_inertia(j: &Matrix4<f64>) -> LinkParams {
     let sym = |r: usize, c: usize| j[(r.min(c), r.max(c))];

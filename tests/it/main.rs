@@ -3,6 +3,7 @@
 
 mod cli;
 mod common;
+mod eval;
 mod identify;
 mod kernels;
 mod loaders;

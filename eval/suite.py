@@ -1,0 +1,432 @@
+"""The evaluation suite: does `dynid identify` find the effects a model lacks, on data it was never tuned to?
+
+Cases are generated from a seed and simulated by an independent simulator, MuJoCo (inverse dynamics, `mj_inverse`):
+
+- arms: the repository's generated arms (planar2, puma560, panda, scara) and random modified-D-H tables of 2-7 joints
+  (some prismatic), with random physical links (mass, centre of mass, inertia of a random box); written as a URDF by
+  `dynid export-urdf` and loaded into MuJoCo, which computes every torque;
+- effects: a random subset (possibly empty) of viscous (MuJoCo `damping`), Coulomb (`frictionloss`), rotor inertia
+  (`armature`), linear spring about 0 (`stiffness`) and a constant offset (added to the recorded torque), each sized
+  to a torque share of 1-30 % of the joint's rigid-body torque RMS;
+- logs: 3 runs (Fourier or point-to-point excitation; 2 fitted, 1 validation), 100 Hz-2 kHz with timing jitter and
+  dropped samples, 12-20-bit encoders, 0.3-3 % torque noise, with or without a (noisy) velocity column.
+
+For each case: `identify --effects auto` (the product), the same with the true effect set (automatic cut-off), and the
+true effect set at each cut-off of a fixed grid — the best of those is the **oracle**. Scored from report.json:
+per (case, candidate term) decisions (found / missed / false positive, by effect kind and torque share), validation
+error / oracle error, automatic cut-off error / best fixed cut-off error, run time.
+
+    python eval/suite.py --dynid target/release/dynid --cases 200 --jobs 2 --out out/eval   # the full suite
+    python eval/suite.py --dynid target/release/dynid --cases 20 --out out/eval20             # the test subset
+
+Writes OUT/cases.json (every case: truth and scores) and OUT/summary.json / summary.md (the tables of docs/eval.md).
+Exit status 0 when every case ran (a failed identify is recorded, not fatal), 77 without MuJoCo.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import subprocess
+import sys
+import tempfile
+import time
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+import numpy as np
+
+SKIP = 77
+REPO = Path(__file__).resolve().parents[1]
+EFFECTS = ["viscous", "coulomb", "armature", "spring", "offset"]
+GENERATED = ["planar2", "puma560", "panda", "scara"]
+CUTOFF_GRID = [1.0, 2.0, 4.0, 8.0, 16.0]
+
+
+# --- case generation --------------------------------------------------------------------------------------------
+
+
+def random_table(rng: np.random.Generator, name: str) -> tuple[str, list[str]]:
+    """A random modified-D-H table (TOML text) of 2-7 joints and the joints' kinds."""
+    n = int(rng.integers(2, 8))
+    lines = [f'name = "{name}"', 'convention = "modified"', "gravity = [0.0, 0.0, -9.81]", ""]
+    kinds = []
+    for i in range(n):
+        kind = "prismatic" if i > 0 and rng.random() < 0.15 else "revolute"
+        kinds.append(kind)
+        alpha = float(rng.choice([0.0, math.pi / 2, -math.pi / 2])) if i > 0 else 0.0
+        a = float(rng.uniform(0.0, 0.5)) if i > 0 else 0.0
+        d = float(rng.uniform(0.0, 0.3))
+        lines += ["[[joint]]", f'kind = "{kind}"', f"alpha = {alpha!r}", f"a = {a!r}", f"d = {d!r}", "theta = 0.0", ""]
+    return "\n".join(lines), kinds
+
+
+def generated_kinds(arm: str) -> list[str]:
+    text = (REPO / "arms" / f"{arm}.toml").read_text()
+    return [line.split('"')[1] for line in text.splitlines() if line.strip().startswith("kind")]
+
+
+def random_params(rng: np.random.Generator, n: int) -> str:
+    """Physical links: mass 0.3-8 kg (lighter towards the tip), a box's inertia, COM within 0.2 m."""
+    out = []
+    for i in range(n):
+        m = float(rng.uniform(0.3, 8.0) * (1.0 - 0.6 * i / max(n - 1, 1)))
+        size = [float(x) for x in rng.uniform(0.03, 0.3, 3)]
+        ixx = m * (size[1] ** 2 + size[2] ** 2) / 12
+        iyy = m * (size[0] ** 2 + size[2] ** 2) / 12
+        izz = m * (size[0] ** 2 + size[1] ** 2) / 12
+        com = [float(x) for x in rng.uniform(-0.2, 0.2, 3)]
+        out += [
+            "[[link]]",
+            f"m = {m!r}",
+            f"com = [{com[0]!r}, {com[1]!r}, {com[2]!r}]",
+            f"inertia_com = [{ixx!r}, 0.0, 0.0, {iyy!r}, 0.0, {izz!r}]",
+            "",
+        ]
+    return "\n".join(out)
+
+
+def excitation(rng: np.random.Generator, kinds: list[str], t: np.ndarray, kind: str) -> tuple[np.ndarray, ...]:
+    """q, dq, ddq (len(t) x n): a Fourier series or quintic point-to-point moves with rests."""
+    n = len(kinds)
+    q, dq, ddq = (np.zeros((len(t), n)) for _ in range(3))
+    for j in range(n):
+        span = 0.15 if kinds[j] == "prismatic" else 1.2
+        if kind == "fourier":
+            w0 = 2 * math.pi * rng.uniform(0.05, 0.2)
+            for h in range(1, 6):
+                a, b = rng.normal(0, span / (2 * h), 2)
+                w = h * w0
+                q[:, j] += a * np.sin(w * t) + b * np.cos(w * t)
+                dq[:, j] += a * w * np.cos(w * t) - b * w * np.sin(w * t)
+                ddq[:, j] += -a * w * w * np.sin(w * t) - b * w * w * np.cos(w * t)
+        else:
+            t0, p0 = 0.0, 0.0
+            while t0 < t[-1]:
+                dur, rest = rng.uniform(0.8, 3.0), rng.uniform(0.0, 0.8)
+                p1 = rng.uniform(-span, span)
+                s = np.clip((t - t0) / dur, 0, 1)
+                inside = (t >= t0) & (t < t0 + dur)
+                shape = 10 * s**3 - 15 * s**4 + 6 * s**5
+                q[:, j] = np.where(t >= t0, p0 + (p1 - p0) * shape, q[:, j])
+                dq[:, j] += np.where(inside, (p1 - p0) * (30 * s**2 - 60 * s**3 + 30 * s**4) / dur, 0.0)
+                ddq[:, j] += np.where(inside, (p1 - p0) * (60 * s - 180 * s**2 + 120 * s**3) / dur**2, 0.0)
+                t0, p0 = t0 + dur + rest, p1
+    return q, dq, ddq
+
+
+def case_spec(seed: int, quick: bool = False) -> dict:
+    """Everything random about a case, from its seed (the simulation itself is deterministic). `quick` (the test
+    command's subset): the same draws, then at most 4 joints (planar2 or scara for a generated arm), 500 Hz and 15 s."""
+    rng = np.random.default_rng(seed)
+    spec: dict = {"seed": seed, "quick": quick}
+    if rng.random() < 0.5:
+        spec["arm"] = str(rng.choice(GENERATED))
+        spec["table"], spec["kinds"] = None, generated_kinds(spec["arm"])
+    else:
+        spec["arm"] = f"random{seed}"
+        spec["table"], spec["kinds"] = random_table(rng, spec["arm"])
+    n = len(spec["kinds"])
+    spec["params"] = random_params(rng, n)
+    effects = []
+    if rng.random() > 0.2:
+        for j in range(n):
+            for e in EFFECTS:
+                if rng.random() < 0.18:
+                    effects.append({"effect": e, "joint": j + 1, "share": float(rng.uniform(0.01, 0.30))})
+    spec["effects"] = effects
+    spec["rate"] = float(rng.choice([100.0, 200.0, 500.0, 1000.0, 2000.0]))
+    spec["jitter"] = float(rng.choice([0.0, 0.05, 0.2]))
+    spec["drop"] = float(rng.choice([0.0, 0.0, 0.005]))
+    spec["encoder_bits"] = int(rng.integers(12, 21))
+    spec["noise"] = float(rng.uniform(0.003, 0.03))
+    spec["velocity_column"] = bool(rng.random() < 0.5)
+    spec["excitation"] = str(rng.choice(["fourier", "point-to-point"]))
+    spec["duration"] = float(rng.uniform(20.0, 40.0))
+    if quick:
+        if spec["table"] is None and spec["arm"] in ("puma560", "panda"):
+            spec["arm"] = "planar2" if seed % 2 else "scara"
+            spec["kinds"] = generated_kinds(spec["arm"])
+        elif spec["table"] is not None and len(spec["kinds"]) > 4:
+            head, *rows = spec["table"].split("[[joint]]")
+            spec["table"] = "[[joint]]".join([head, *rows[:4]])
+            spec["kinds"] = spec["kinds"][:4]
+        n = len(spec["kinds"])
+        spec["params"] = "[[link]]".join(spec["params"].split("[[link]]")[: n + 1])
+        spec["effects"] = [e for e in spec["effects"] if e["joint"] <= n]
+        spec["rate"] = min(spec["rate"], 500.0)
+        spec["duration"] = 15.0
+    return spec
+
+
+# --- simulation (MuJoCo) ----------------------------------------------------------------------------------------
+
+
+def column(effect: str, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray) -> np.ndarray:
+    return {"viscous": dq, "coulomb": np.sign(dq), "armature": ddq, "spring": q, "offset": np.ones_like(q)}[effect]
+
+
+def simulate(mujoco, spec: dict, urdf: Path, work: Path) -> tuple[list[Path], list[dict]]:  # noqa: ANN001
+    """Three logs of the case, and the effects with their coefficients (sized on the first run)."""
+    model = mujoco.MjModel.from_xml_path(str(urdf))
+    model.jnt_limited[:] = 0
+    model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
+    data = mujoco.MjData(model)
+    rng = np.random.default_rng(spec["seed"] + 1_000_003)
+    n = model.nv
+    dt_sim = 1.0 / spec["rate"]
+    runs = []
+    for _ in range(3):
+        t = np.arange(0.0, spec["duration"], dt_sim)
+        q, dq, ddq = excitation(rng, spec["kinds"], t, spec["excitation"])
+        runs.append((t, q, dq, ddq))
+
+    def rigid(q, dq, ddq):  # noqa: ANN001, ANN202
+        tau = np.zeros_like(q)
+        for k in range(len(q)):
+            data.qpos[:], data.qvel[:], data.qacc[:] = q[k], dq[k], ddq[k]
+            mujoco.mj_inverse(model, data)
+            tau[k] = data.qfrc_inverse
+        return tau
+
+    # Size each effect on run 1's rigid torque, then give MuJoCo the joint effects.
+    t, q, dq, ddq = runs[0]
+    base = rigid(q, dq, ddq)
+    rms = np.sqrt((base**2).mean(axis=0)) + 1e-9
+    effects = []
+    for e in spec["effects"]:
+        j = e["joint"] - 1
+        col = column(e["effect"], q[:, j], dq[:, j], ddq[:, j])
+        coef = e["share"] * rms[j] / max(float(np.sqrt((col**2).mean())), 1e-12)
+        effects.append({**e, "coefficient": coef})
+        if e["effect"] == "viscous":
+            model.dof_damping[j] = coef
+        elif e["effect"] == "coulomb":
+            model.dof_frictionloss[j] = coef
+        elif e["effect"] == "armature":
+            model.dof_armature[j] = coef
+        elif e["effect"] == "spring":
+            model.jnt_stiffness[j] = coef
+            model.qpos_spring[j] = 0.0
+    offset = np.zeros(n)
+    for e in effects:
+        if e["effect"] == "offset":
+            offset[e["joint"] - 1] = e["coefficient"]
+    paths = []
+    step = 2 * math.pi / 2 ** spec["encoder_bits"]
+    for r, (t, q, dq, ddq) in enumerate(runs):
+        tau = rigid(q, dq, ddq) + offset
+        tau_rms = np.sqrt((tau**2).mean(axis=0)) + 1e-12
+        tau_meas = tau + spec["noise"] * tau_rms * rng.standard_normal(tau.shape)
+        q_meas = np.round(q / step) * step
+        keep = rng.random(len(t)) >= spec["drop"]
+        t_meas = t + spec["jitter"] * dt_sim * rng.uniform(-0.5, 0.5, len(t))
+        t_meas[0] = t[0]
+        cols = ["t"] + [f"q{j + 1}" for j in range(n)]
+        blocks = [t_meas[:, None], q_meas]
+        if spec["velocity_column"]:
+            cols += [f"dq{j + 1}" for j in range(n)]
+            blocks.append(dq + 0.002 * np.sqrt((dq**2).mean(axis=0)) * rng.standard_normal(dq.shape))
+        cols += [f"tau{j + 1}" for j in range(n)]
+        blocks.append(tau_meas)
+        table = np.hstack(blocks)[keep]
+        path = work / f"run{r + 1}.csv"
+        np.savetxt(path, table, delimiter=",", header=",".join(cols), comments="", fmt="%.10g")
+        paths.append(path)
+    return paths, effects
+
+
+# --- running and scoring ----------------------------------------------------------------------------------------
+
+
+def identify(dynid: str, arm: str, runs: list[Path], out: Path, extra: list[str]) -> dict:
+    cmd = [dynid, "identify", "--arm", arm, "--data", str(runs[0]), "--data", str(runs[1])]
+    cmd += ["--validate", str(runs[2]), "--out", str(out), "--physical", "off", *extra]
+    start = time.perf_counter()
+    p = subprocess.run(cmd, capture_output=True, text=True)
+    secs = time.perf_counter() - start
+    if p.returncode != 0:
+        return {"failed": p.stderr.strip()[-400:], "seconds": secs}
+    r = json.loads((out / "report.json").read_text())
+    return {
+        "validation": r["error"]["after"]["validation"]["overall"],
+        "found": sorted(f"{e['effect']}{e['joint']}" for e in r["effects_found"]),
+        "not_identifiable": sorted(m["effect"] for m in r["not_identifiable"]),
+        "cutoff_hz": r["data"]["train"][0]["derivative"]["cutoff_hz"],
+        "seconds": secs,
+    }
+
+
+def run_case(args: tuple[str, int, str, bool]) -> dict:
+    dynid, seed, keep, quick = args
+    import mujoco
+
+    spec = case_spec(seed, quick)
+    with tempfile.TemporaryDirectory() as tmp:
+        work = Path(keep) / f"case{seed}" if keep else Path(tmp)
+        work.mkdir(parents=True, exist_ok=True)
+        arm = spec["arm"]
+        if spec["table"] is not None:
+            (work / "arm.toml").write_text(spec["table"])
+            arm = str(work / "arm.toml")
+        (work / "truth.params.toml").write_text(spec["params"])
+        urdf = work / "truth.urdf"
+        subprocess.run(
+            [dynid, "export-urdf", "--arm", arm, "--params", str(work / "truth.params.toml"), "--out", str(urdf)],
+            check=True,
+            capture_output=True,
+        )
+        runs, effects = simulate(mujoco, spec, urdf, work)
+        truth = sorted(f"{e['effect']}{e['joint']}" for e in effects)
+        true_arg = ",".join(f"{e['effect']}:{e['joint']}" for e in effects) or "none"
+        auto = identify(dynid, arm, runs, work / "auto", [])
+        true_auto = identify(dynid, arm, runs, work / "true_auto", ["--effects", true_arg])
+        nyquist = 0.5 * spec["rate"]
+        grid = {}
+        for fc in CUTOFF_GRID:
+            if fc < 0.4 * nyquist:
+                res = identify(dynid, arm, runs, work / f"true_fc{fc:g}", ["--effects", true_arg, "--cutoff", str(fc)])
+                grid[str(fc)] = res
+    spec_out = {k: v for k, v in spec.items() if k not in ("table", "params")}
+    return {"spec": spec_out, "effects": effects, "truth": truth, "auto": auto, "true_auto": true_auto, "grid": grid}
+
+
+def score(cases: list[dict]) -> dict:
+    """The suite's numbers: decisions by effect kind and share, error ratios, run time."""
+    decisions = []  # (kind, share or None, truth bool, found bool)
+    ratio, cutoff_ratio, seconds, failed = [], [], [], 0
+    for c in cases:
+        a = c["auto"]
+        if "failed" in a:
+            failed += 1
+            continue
+        seconds.append(a["seconds"])
+        n = len(c["spec"]["kinds"])
+        shares = {f"{e['effect']}{e['joint']}": e["share"] for e in c["effects"]}
+        for e in EFFECTS:
+            for j in range(1, n + 1):
+                term = f"{e}{j}"
+                # An effect that is a rigid-body parameter in disguise for every motion (armature of a first
+                # revolute joint about a fixed axis = ZZR1) is not a decision: no data can tell it apart.
+                if term in a.get("not_identifiable", []):
+                    continue
+                decisions.append((e, shares.get(term), term in shares, term in a["found"]))
+        oracle = [g["validation"] for g in c["grid"].values() if "validation" in g]
+        if oracle:
+            best = min(oracle)
+            ratio.append(a["validation"] / best)
+            if "validation" in c["true_auto"]:
+                cutoff_ratio.append(c["true_auto"]["validation"] / best)
+    out: dict = {"cases": len(cases), "failed": failed}
+    big = [d for d in decisions if d[2] and d[1] >= 0.03]
+    out["recall_share_ge_3pct"] = sum(d[3] for d in big) / max(len(big), 1)
+    negatives = [d for d in decisions if not d[2]]
+    out["false_positive_rate"] = sum(d[3] for d in negatives) / max(len(negatives), 1)
+    out["decisions"] = len(decisions)
+    out["per_kind"] = {}
+    for e in EFFECTS:
+        pos = [d for d in decisions if d[0] == e and d[2]]
+        neg = [d for d in decisions if d[0] == e and not d[2]]
+        fp = sum(d[3] for d in neg)
+        tp = sum(d[3] for d in pos)
+        out["per_kind"][e] = {
+            "present": len(pos),
+            "recall": tp / max(len(pos), 1),
+            "precision": tp / max(tp + fp, 1),
+            "false_positives": fp,
+        }
+    bins = [(0.01, 0.03), (0.03, 0.1), (0.1, 0.3)]
+    out["recall_by_share"] = {
+        f"{lo:.0%}-{hi:.0%}": sum(d[3] for d in decisions if d[2] and lo <= d[1] < hi)
+        / max(sum(1 for d in decisions if d[2] and lo <= d[1] < hi), 1)
+        for lo, hi in bins
+    }
+    r = np.array(ratio) if ratio else np.array([np.nan])
+    cr = np.array(cutoff_ratio) if cutoff_ratio else np.array([np.nan])
+    out["validation_over_oracle"] = {
+        "within_1.15": float((r <= 1.15).mean()),
+        "median": float(np.median(r)),
+        "p90": float(np.percentile(r, 90)),
+        "max": float(r.max()),
+    }
+    out["auto_cutoff_over_best_fixed"] = {
+        "within_1.1": float((cr <= 1.1).mean()),
+        "median": float(np.median(cr)),
+        "p90": float(np.percentile(cr, 90)),
+        "max": float(cr.max()),
+    }
+    out["seconds_per_identify"] = {"median": float(np.median(seconds or [np.nan])), "max": max(seconds or [np.nan])}
+    return out
+
+
+def markdown(s: dict, args: argparse.Namespace) -> str:
+    lines = [
+        f"Cases {s['cases']} (seeds {args.first_seed}..{args.first_seed + args.cases - 1}"
+        f"{', quick' if args.quick else ''}), identify failed in"
+        f" {s['failed']}; {s['decisions']} (case, candidate) decisions.",
+        "",
+        "| measure | value | issue 18's bar |",
+        "|---|---|---|",
+        f"| recall, effects with torque share ≥ 3 % | {s['recall_share_ge_3pct']:.3f} | ≥ 0.95 |",
+        f"| false positives per absent candidate | {s['false_positive_rate']:.4f} | ≤ 0.02 |",
+        f"| validation error ≤ 1.15 × oracle | {s['validation_over_oracle']['within_1.15']:.3f} of cases"
+        f" (median ratio {s['validation_over_oracle']['median']:.3f}, 90th percentile"
+        f" {s['validation_over_oracle']['p90']:.2f}, worst {s['validation_over_oracle']['max']:.2f}) | ≥ 0.95 |",
+        f"| automatic cut-off ≤ 1.1 × best fixed (true effects) | {s['auto_cutoff_over_best_fixed']['within_1.1']:.3f}"
+        f" of cases (median {s['auto_cutoff_over_best_fixed']['median']:.3f}, worst"
+        f" {s['auto_cutoff_over_best_fixed']['max']:.2f}) | ≥ 0.95 |",
+        f"| identify run time | median {s['seconds_per_identify']['median']:.2f} s, worst"
+        f" {s['seconds_per_identify']['max']:.1f} s | |",
+        "",
+        "| effect | present | recall | precision | false positives |",
+        "|---|---|---|---|---|",
+    ]
+    for e, k in s["per_kind"].items():
+        lines.append(f"| {e} | {k['present']} | {k['recall']:.3f} | {k['precision']:.3f} | {k['false_positives']} |")
+    lines += ["", "| torque share | recall |", "|---|---|"]
+    lines += [f"| {b} | {v:.3f} |" for b, v in s["recall_by_share"].items()]
+    return "\n".join(lines) + "\n"
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--dynid", required=True)
+    ap.add_argument("--cases", type=int, default=200)
+    ap.add_argument("--first-seed", type=int, default=1)
+    ap.add_argument("--jobs", type=int, default=1)
+    ap.add_argument("--out", type=Path, required=True)
+    ap.add_argument("--keep", action="store_true", help="keep every case's logs and reports under OUT/")
+    ap.add_argument("--quick", action="store_true", help="the test command's subset: <= 4 joints, <= 500 Hz, 15 s")
+    a = ap.parse_args(argv)
+    try:
+        import mujoco  # noqa: F401
+    except ImportError as e:
+        print(f"missing: {e} — run scripts/test.sh (it sets up .venv/)", file=sys.stderr)
+        return SKIP
+    a.out.mkdir(parents=True, exist_ok=True)
+    seeds = range(a.first_seed, a.first_seed + a.cases)
+    keep = str(a.out.resolve()) if a.keep else ""
+    jobs = [(str(Path(a.dynid).resolve()), s, keep, a.quick) for s in seeds]
+    start = time.perf_counter()
+    cases = []
+    with ProcessPoolExecutor(max_workers=a.jobs) as pool:
+        for c in pool.map(run_case, jobs):
+            cases.append(c)
+            au = c["auto"]
+            status = au.get("failed", f"validation {100 * au.get('validation', float('nan')):.2f} %")
+            spec = c["spec"]
+            print(f"case {spec['seed']}: {spec['arm']}, truth {c['truth']}, found {au.get('found')}: {status}")
+    summary = score(cases)
+    summary["wall_seconds"] = time.perf_counter() - start
+    (a.out / "cases.json").write_text(json.dumps(cases, indent=1))
+    (a.out / "summary.json").write_text(json.dumps(summary, indent=1))
+    md = markdown(summary, a)
+    (a.out / "summary.md").write_text(md)
+    print(md)
+    print(f"wall time {summary['wall_seconds']:.0f} s")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
