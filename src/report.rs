@@ -171,6 +171,7 @@ pub fn json_report(o: &Outcome, command: &str) -> Value {
         "cutoff_scan": o.cutoff_scan,
         "estimator": "weighted least squares (per-joint 1/sigma), incremental QR, parallel zero-phase filtering of tau and regressor; std by block jackknife; then the physically consistent estimate closest to it in the same weighted metric (`physical`)",
         "physical": physical::json(o),
+        "warnings": o.warnings,
         "command": command,
     })
 }
@@ -262,6 +263,13 @@ pub fn markdown(o: &Outcome, command: &str, plots: &[String]) -> String {
         }
     );
 
+    if !o.warnings.is_empty() {
+        let _ = writeln!(m, "## Warnings: what these data cannot determine\n");
+        for w in &o.warnings {
+            let _ = writeln!(m, "- {w}");
+        }
+        let _ = writeln!(m);
+    }
     errors_section(&mut m, o);
     steps_section(&mut m, o);
     evidence_section(&mut m, o);

@@ -58,6 +58,10 @@ pub struct Args {
     /// identified.urdf: `on` or `off`.
     #[arg(long, default_value = "on", value_parser = ["on", "off"])]
     pub physical: String,
+    /// Fail (exit 2, nothing written) when the data cannot identify something (a joint that
+    /// barely moves); without it such findings are warnings in the summary and the report.
+    #[arg(long)]
+    pub strict: bool,
     /// Parameters (params TOML, e.g. the CAD values `import-urdf` writes) that the consistent
     /// estimate is pulled towards where the data cannot decide; default: towards zero.
     #[arg(long)]
@@ -125,7 +129,28 @@ fn command_line(args: &Args) -> String {
     if let Some(p) = &args.prior {
         let _ = write!(c, " --prior {}", p.display());
     }
+    if args.strict {
+        c += " --strict";
+    }
     c
+}
+
+/// Prints the outcomes' identifiability warnings; with `--strict` they are an error.
+fn check_warnings(args: &Args, outs: &[&Outcome]) -> Result<()> {
+    let mut all: Vec<&String> = outs.iter().flat_map(|o| &o.warnings).collect();
+    all.dedup();
+    if args.strict && !all.is_empty() {
+        let list: Vec<String> = all.iter().map(|w| format!("  - {w}")).collect();
+        return Err(InputError(format!(
+            "--strict: the data cannot identify everything:\n{}",
+            list.join("\n")
+        ))
+        .into());
+    }
+    for w in all {
+        eprintln!("warning: {w}");
+    }
+    Ok(())
 }
 
 pub fn run(args: &Args) -> Result<()> {
@@ -171,6 +196,7 @@ pub fn run(args: &Args) -> Result<()> {
             .into());
         }
         let outs = identify::leave_one_out(&arm, train, &cfg).map_err(bad)?;
+        check_warnings(args, &outs.iter().collect::<Vec<_>>())?;
         let table = arm.dh_table().ok();
         let summary =
             crate::report::leave_one_out::write(&args.out, &outs, &command, table.as_ref())
@@ -180,6 +206,7 @@ pub fn run(args: &Args) -> Result<()> {
     }
     let val = args.validate.as_deref().map(load).transpose()?;
     let outcome = identify::run(&arm, train, val, &cfg).map_err(bad)?;
+    check_warnings(args, &[&outcome])?;
     let table = arm.dh_table().ok();
     let files = crate::report::write(&args.out, &outcome, &command, table.as_ref())
         .context("writing the report")?;

@@ -48,6 +48,7 @@
 
 pub mod base;
 mod evaluate;
+pub mod identifiability;
 mod layout;
 mod load_stage;
 pub mod ls;
@@ -262,7 +263,9 @@ pub fn run_prepared(
     let problem = Problem::build(base, layout, train, cfg.blocks);
     let first = select::first_stage(problem, train, cfg, declared, &searched)?;
     let selected = load_stage(base, train, cfg, first)?;
-    outcome::assemble(arm, base, train, val, cfg, selected, &merged)
+    let mut out = outcome::assemble(arm, base, train, val, cfg, selected, &merged)?;
+    out.warnings = identifiability::warnings(train, table, base.dof());
+    Ok(out)
 }
 
 /// Leave-one-file-out study: each file in turn is the validation file, the others the training

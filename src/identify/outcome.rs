@@ -118,6 +118,8 @@ pub struct Outcome {
     pub physical_error: Option<String>,
     /// The consistent estimate judged like `after` (its held-out error is not computed: NaN).
     pub consistent: Option<ModelResult>,
+    /// What the training data cannot determine ([`super::identifiability`]).
+    pub warnings: Vec<String>,
 }
 
 /// Stage 7: the outcome of an identification whose effects are selected (`selected`, the
@@ -197,6 +199,7 @@ pub(super) fn assemble(
         physical,
         physical_error,
         consistent,
+        warnings: Vec::new(),
     })
 }
 

@@ -47,6 +47,8 @@ pub struct Spec {
     pub with_derivatives: bool,
     /// Random sample-time jitter as a fraction of the step (0 = uniform).
     pub jitter: f64,
+    /// Joints held still (at a constant position) during the motion.
+    pub still: Vec<usize>,
     pub seed: u64,
 }
 
@@ -67,6 +69,7 @@ impl Spec {
             q_resolution: Some(2.0 * PI / 131072.0),
             with_derivatives: false,
             jitter: 0.0,
+            still: Vec::new(),
             seed,
         }
     }
@@ -188,8 +191,11 @@ pub fn generate(spec: &Spec) -> Trajectory {
     let range: Vec<f64> = table
         .joints
         .iter()
-        .map(|j| {
-            if j.kind == JointKind::Revolute {
+        .enumerate()
+        .map(|(i, j)| {
+            if spec.still.contains(&i) {
+                0.0
+            } else if j.kind == JointKind::Revolute {
                 1.5
             } else {
                 0.2

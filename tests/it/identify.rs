@@ -324,6 +324,79 @@ fn each_effect_is_detected_on_the_right_joint() {
     }
 }
 
+/// Issue 18's "silent on unidentifiable data": joint 2 held still (the arm's second joint never
+/// moves) was fitted and reported without a word. The outcome must name the joint and the fix;
+/// a moving joint must not be named. (Failed before `identify::identifiability`: no warnings.)
+#[test]
+fn a_joint_that_never_moves_is_named() {
+    let mut spec = Spec::new(other_planar(), 71);
+    spec.still = vec![1];
+    let arm = ArmSource::Table(spec.table.clone());
+    let (tr, va) = synth_pair(&spec);
+    let o = match identify::run(&arm, vec![tr.into()], Some(va.into()), &Config::default()) {
+        Ok(o) => o,
+        Err(e) => panic!("a still joint must be a warning, not an error: {e}"),
+    };
+    assert_eq!(o.warnings.len(), 1, "{:?}", o.warnings);
+    assert!(
+        o.warnings[0].starts_with("joint 2 barely moves") && o.warnings[0].contains("±0.5 rad"),
+        "{}",
+        o.warnings[0]
+    );
+    let (moving, _) = run_synth(&Spec::new(other_planar(), 71), &Config::default());
+    assert!(moving.warnings.is_empty(), "{:?}", moving.warnings);
+}
+
+/// `--strict` turns the warning into an error: exit 2, the joint named, nothing written; without
+/// it the warning is printed and the report written.
+#[test]
+fn strict_refuses_a_joint_that_never_moves() {
+    let mut spec = Spec::new(other_planar(), 72);
+    spec.still = vec![1];
+    let tr = generate(&spec);
+    let dir = tempfile::tempdir().unwrap();
+    let mut csv = String::from("t,q1,q2,tau1,tau2\n");
+    let tau = tr.tau.as_ref().unwrap();
+    for k in 0..tr.t.len() {
+        csv += &format!(
+            "{},{},{},{},{}\n",
+            tr.t[k],
+            tr.q[2 * k],
+            tr.q[2 * k + 1],
+            tau[2 * k],
+            tau[2 * k + 1]
+        );
+    }
+    let (data, arm) = (dir.path().join("still.csv"), dir.path().join("arm.toml"));
+    std::fs::write(&data, csv).unwrap();
+    std::fs::write(&arm, PLANAR2_OTHER).unwrap();
+    let run = |out: &str, strict: bool| {
+        let mut c = std::process::Command::new(env!("CARGO_BIN_EXE_dynid"));
+        c.args(["identify", "--arm"])
+            .arg(&arm)
+            .arg("--data")
+            .arg(&data);
+        c.arg("--out").arg(dir.path().join(out));
+        if strict {
+            c.arg("--strict");
+        }
+        c.output().unwrap()
+    };
+    let o = run("strict", true);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("--strict") && err.contains("joint 2 barely moves"),
+        "{err}"
+    );
+    assert!(!dir.path().join("strict").exists());
+    let o = run("lenient", false);
+    assert!(o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("warning: joint 2 barely moves"));
+    let md = std::fs::read_to_string(dir.path().join("lenient/report.md")).unwrap();
+    assert!(md.contains("## Warnings") && md.contains("joint 2 barely moves"));
+}
+
 /// Stribeck friction (synthetic: `sgn(q̇)·exp(−(q̇/0.1)²)`, active only near velocity reversals)
 /// is found on the right joint and nothing else. Its coefficient is not compared: the tool's
 /// Stribeck column has its own velocity scale (0.1 × the joint's RMS velocity), so the two
