@@ -41,8 +41,8 @@ use crate::tomlread::{Fail, Src, TableView};
 pub const MAX_JOINTS: usize = 12;
 
 const TOP_KEYS: [&str; 4] = ["name", "convention", "gravity", "joint"];
-const JOINT_KEYS: [&str; 10] = [
-    "kind", "alpha", "a", "d", "theta", "q_min", "q_max", "dq_max", "ddq_max", "tau_max",
+const JOINT_KEYS: [&str; 11] = [
+    "name", "kind", "alpha", "a", "d", "theta", "q_min", "q_max", "dq_max", "ddq_max", "tau_max",
 ];
 
 /// Joint type.
@@ -55,6 +55,10 @@ pub enum JointKind {
 /// One row of the table plus optional limits (SI units: rad or m, per second, N·m or N).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Joint {
+    /// The joint's name as the robot's software calls it (e.g. the URDF joint, the `name[]` of
+    /// a ROS `JointState`): how recorded bags are matched to the table (see [`crate::bag`]).
+    /// Optional; when given, non-empty, without commas or surrounding spaces, and unique.
+    pub name: Option<String>,
     pub kind: JointKind,
     /// `α_{i-1}`: twist about the previous frame's x axis (rad).
     pub alpha: f64,
@@ -112,6 +116,10 @@ pub enum DhErrorKind {
     EmptyName,
     /// A limit that must be positive is not, or `q_min >= q_max`.
     BadLimit { what: &'static str },
+    /// A joint `name` that is empty, has a comma or surrounding spaces.
+    BadJointName { name: String },
+    /// Two joints with the same `name` (`first`: the other joint, 1-based).
+    DuplicateJointName { name: String, first: usize },
 }
 
 impl fmt::Display for DhErrorKind {
@@ -141,6 +149,14 @@ impl fmt::Display for DhErrorKind {
             ),
             DhErrorKind::EmptyName => write!(f, "the name is empty — give the arm a name, e.g. `name = \"my_arm\"`"),
             DhErrorKind::BadLimit { what } => write!(f, "{what} — fix or remove the limit"),
+            DhErrorKind::BadJointName { name } => write!(
+                f,
+                "joint name `{name}` is empty, has a comma or surrounding spaces — give the name the robot's software uses (e.g. `name = \"shoulder_pan_joint\"`) or remove the key"
+            ),
+            DhErrorKind::DuplicateJointName { name, first } => write!(
+                f,
+                "joint name `{name}` is already used by joint {first} — joint names must be unique (they match recorded joint states to joints)"
+            ),
         }
     }
 }
@@ -220,6 +236,21 @@ impl DhTable {
             .iter()
             .map(read_joint)
             .collect::<Result<Vec<_>, _>>()?;
+        for (k, j) in joints.iter().enumerate() {
+            let Some(name) = &j.name else { continue };
+            if let Some(first) = joints[..k]
+                .iter()
+                .position(|o| o.name.as_ref() == Some(name))
+            {
+                return Err(DhError {
+                    loc: tables[k].loc_of("name"),
+                    kind: Box::new(DhErrorKind::DuplicateJointName {
+                        name: name.clone(),
+                        first: first + 1,
+                    }),
+                });
+            }
+        }
         Ok(DhTable {
             name,
             convention,
@@ -232,10 +263,26 @@ impl DhTable {
     pub fn dof(&self) -> usize {
         self.joints.len()
     }
+
+    /// Every joint's `name`, if all joints have one.
+    pub fn joint_names(&self) -> Option<Vec<String>> {
+        self.joints.iter().map(|j| j.name.clone()).collect()
+    }
 }
 
 fn read_joint(t: &TableView<'_>) -> Result<Joint, DhError> {
     t.check_keys(&JOINT_KEYS)?;
+    let name = match t.str_opt("name")? {
+        Some(n) if n.is_empty() || n.contains(',') || n.trim() != n => {
+            return Err(DhError {
+                loc: t.loc_of("name"),
+                kind: Box::new(DhErrorKind::BadJointName {
+                    name: n.to_string(),
+                }),
+            })
+        }
+        n => n.map(str::to_string),
+    };
     let kind = match t.str_req("kind")? {
         "revolute" => JointKind::Revolute,
         "prismatic" => JointKind::Prismatic,
@@ -287,6 +334,7 @@ fn read_joint(t: &TableView<'_>) -> Result<Joint, DhError> {
     let ddq_max = positive("ddq_max", "ddq_max must be positive")?;
     let tau_max = positive("tau_max", "tau_max must be positive")?;
     Ok(Joint {
+        name,
         kind,
         alpha,
         a,

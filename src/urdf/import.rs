@@ -458,6 +458,10 @@ fn table_joint(robot: &Robot, j: usize, kind: JointKind, r: &Row) -> Joint {
         (None, None)
     };
     Joint {
+        // A name a D-H table cannot hold (a comma, surrounding spaces) is left out: such an arm
+        // is matched to its recordings with `--joints`.
+        name: (!uj.name.is_empty() && !uj.name.contains(',') && uj.name.trim() == uj.name)
+            .then(|| uj.name.clone()),
         kind,
         alpha: r.alpha,
         a: r.a,
@@ -653,6 +657,9 @@ fn dh_text(
             uj.child.link
         );
         s.push_str("[[joint]]\n");
+        if let Some(n) = &jt.name {
+            let _ = writeln!(s, "name = {}", quote(n));
+        }
         let kind = if jt.kind == JointKind::Prismatic {
             "prismatic"
         } else {

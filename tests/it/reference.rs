@@ -165,6 +165,7 @@ fn table_strategy() -> impl Strategy<Value = DhTable> {
             joints: joints
                 .into_iter()
                 .map(|(prismatic, alpha, a, d, theta)| Joint {
+                    name: None,
                     kind: if prismatic {
                         JointKind::Prismatic
                     } else {
