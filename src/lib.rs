@@ -4,11 +4,13 @@
 //! Layout: [`model`] is the contract every generated arm implements, [`arms`] the registry of
 //! generated arms, [`reference`](mod@reference) the hand-written recursive Newton–Euler oracle; [`dh`],
 //! [`params`] and [`data`] load user files with errors that say where and how to fix ([`log`]
-//! streams a data file for identification, spilling a long one to disk); [`io`]
+//! streams a data file for identification, spilling a long one to disk; [`bag`] reads ROS 2
+//! bags into one); [`io`]
 //! writes outputs atomically; [`pack`] runs every kernel on four samples at once (SIMD across
 //! samples); [`cli`] is the command line.
 
 pub mod arms;
+pub mod bag;
 pub mod bench;
 pub mod cholesky;
 pub mod cli;

@@ -208,6 +208,19 @@ impl Log {
         })
     }
 
+    /// A log of the rows of `table` (written by a reader of another format, e.g. [`crate::bag`]),
+    /// laid out as `layout` says.
+    pub fn from_table(source: String, layout: RowLayout, table: Table) -> Log {
+        debug_assert_eq!(layout.width(), table.width());
+        Log {
+            source,
+            layout,
+            lo: 0,
+            hi: table.len(),
+            table: Arc::new(table),
+        }
+    }
+
     /// Number of samples.
     pub fn len(&self) -> usize {
         self.hi - self.lo
