@@ -11,6 +11,7 @@ use clap::{Parser, Subcommand};
 mod arms;
 mod bench;
 mod bench_models;
+mod convert;
 mod excite;
 mod export_urdf;
 mod identify;
@@ -35,6 +36,8 @@ pub enum Command {
     Bench(bench::Args),
     /// The models, parameters and input pool of `dynid bench`, for peer harnesses (benches/peers/).
     BenchModels(bench_models::Args),
+    /// A ROS 2 bag's (.mcap) joint states as a CSV for identify and torque.
+    Convert(convert::Args),
     /// Inverse dynamics along a trajectory (CSV of t, tau1..taun).
     Torque(torque::Args),
     /// Identify base parameters from data, find missing effects (friction, armature, ...), report.
@@ -62,6 +65,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Some(Command::Bench(args)) => bench::run(&args),
         Some(Command::BenchModels(args)) => bench_models::run(&args),
         Some(Command::Torque(args)) => torque::run(&args),
+        Some(Command::Convert(args)) => convert::run(&args),
         Some(Command::Identify(args)) => identify::run(&args),
         Some(Command::ImportUrdf(args)) => import_urdf::run(&args),
         Some(Command::ExportUrdf(args)) => export_urdf::run(&args),
@@ -80,6 +84,7 @@ pub fn exit_code(err: &anyhow::Error) -> u8 {
             || e.is::<crate::dh::DhError>()
             || e.is::<crate::params::ParamsError>()
             || e.is::<crate::data::DataError>()
+            || e.is::<crate::bag::BagError>()
             || e.is::<crate::arms::ArmError>()
             || e.is::<crate::io::WriteError>()
             || e.is::<crate::urdf::UrdfError>()

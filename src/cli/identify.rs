@@ -23,7 +23,8 @@ pub struct Args {
     /// Arm name (see `dynid arms`) or path to a D-H table (.toml).
     #[arg(long)]
     pub arm: String,
-    /// Training data (CSV or .csv.gz: t, q, [dq], [ddq], tau); repeat for several files.
+    /// Training data (CSV or .csv.gz: t, q, [dq], [ddq], tau; or a ROS 2 bag, .mcap, of
+    /// sensor_msgs/msg/JointState); repeat for several files.
     #[arg(long, required = true)]
     pub data: Vec<PathBuf>,
     /// Validation data (same format), judged with the fitted models.
@@ -66,6 +67,8 @@ pub struct Args {
     /// estimate is pulled towards where the data cannot decide; default: towards zero.
     #[arg(long)]
     pub prior: Option<PathBuf>,
+    #[command(flatten)]
+    pub bag: super::convert::BagArgs,
 }
 
 #[derive(Debug, Clone, Copy, clap::ValueEnum)]
@@ -132,6 +135,15 @@ fn command_line(args: &Args) -> String {
     if args.strict {
         c += " --strict";
     }
+    for (flag, v) in [
+        ("--topic", &args.bag.topic),
+        ("--joints", &args.bag.joints),
+        ("--torque-scale", &args.bag.torque_scale),
+    ] {
+        if let Some(v) = v {
+            let _ = write!(c, " {flag} {v}");
+        }
+    }
     c
 }
 
@@ -175,7 +187,7 @@ pub fn run(args: &Args) -> Result<()> {
         physical: physical_options(args, dof)?,
         ..Config::default()
     };
-    let load = |p: &Path| Log::open(p, Some(dof));
+    let load = |p: &Path| super::convert::open_log(p, &arm, &args.bag, true);
     let train: Vec<Log> = args
         .data
         .iter()

@@ -28,7 +28,8 @@ pub struct Args {
     /// Inertial parameters (TOML: one [[link]] per joint, optional [effects]).
     #[arg(long)]
     pub params: PathBuf,
-    /// Trajectory CSV (or .csv.gz) with t, q, dq and ddq columns.
+    /// Trajectory CSV (or .csv.gz) with t, q and optionally dq, ddq columns; or a ROS 2 bag
+    /// (.mcap) of sensor_msgs/msg/JointState.
     #[arg(long)]
     pub data: PathBuf,
     /// Output CSV (default: stdout).
@@ -44,6 +45,8 @@ pub struct Args {
     /// Without dq/ddq columns: the derivative estimator.
     #[arg(long, value_enum, default_value = "butterworth")]
     pub derivative: super::identify::DerivativeArg,
+    #[command(flatten)]
+    pub bag: super::convert::BagArgs,
 }
 
 pub fn run(args: &Args) -> Result<()> {
@@ -56,7 +59,13 @@ pub fn run(args: &Args) -> Result<()> {
     for w in &params.warnings {
         eprintln!("warning: {w}");
     }
-    let mut traj = Trajectory::from_path(&args.data, Some(dof))?;
+    let mut traj = if crate::bag::is_bag(&args.data) {
+        let log = super::convert::open_log(&args.data, &arm, &args.bag, false)?;
+        log.read(0, log.len())
+    } else {
+        args.bag.reject_for_csv(&args.data)?;
+        Trajectory::from_path(&args.data, Some(dof))?
+    };
     if traj.dq.is_none() || traj.ddq.is_none() {
         estimate_states(&mut traj, args)?;
     }
