@@ -1,6 +1,7 @@
 //! Integration tests (one binary, one module per area). Tests are specifications: each checks
 //! numbers against an independent oracle with a justified tolerance.
 
+mod bag;
 mod cli;
 mod common;
 mod eval;
