@@ -589,3 +589,35 @@ fn joint_names_in_tables_are_validated_and_written_by_import_urdf() {
     got.source = read(&csv).source;
     assert_eq!(got, read(&csv));
 }
+
+/// `torque` reads a bag through the same opener as `identify`: the same output as from the
+/// CSV the bag was made of (inverse dynamics of identical rows: equal bytes).
+#[test]
+fn torque_from_a_bag_equals_torque_from_its_csv() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = small_csv(dir.path(), 400);
+    let bag = dir.path().join("t.mcap");
+    make_bag(&["from-csv", s(&csv), s(&bag), "--names", "a,b", "--gripper"]);
+    let params =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/examples/planar2_spring.params.toml");
+    let run = |data: &Path, extra: &[&str], out: &str| {
+        let out = dir.path().join(out);
+        let mut args = vec![
+            "torque",
+            "--arm",
+            "planar2",
+            "--params",
+            s(&params),
+            "--data",
+            s(data),
+        ];
+        args.extend_from_slice(extra);
+        args.extend_from_slice(&["--cutoff", "20", "--out", s(&out)]);
+        let o = dynid(&args);
+        assert!(o.status.success(), "{}", text(&o));
+        std::fs::read_to_string(out).unwrap()
+    };
+    let from_bag = run(&bag, &["--joints", "a,b"], "bag.csv");
+    assert_eq!(from_bag, run(&csv, &[], "csv.csv"));
+    assert_eq!(from_bag.lines().count(), 401);
+}
