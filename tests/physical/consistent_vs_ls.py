@@ -83,6 +83,8 @@ def one_seed(args: argparse.Namespace, mujoco, urdf: Path, seed: int, work: Path
         return {"seed": seed, "failed": p.stderr.strip()}
     r = json.loads((out / "report.json").read_text())
     ph = r["physical"]
+    if "failed" in ph:
+        return {"seed": seed, "failed": f"consistent fit: {ph['failed']}"}
     return {
         "seed": seed,
         "least_squares_consistent": ph["least_squares_consistent"],
