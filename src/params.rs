@@ -154,6 +154,34 @@ impl Effects {
         effects::unload(mu, dq, tau, &self.scales(j))
     }
 
+    /// Every `[effects]` array with its key, in [`KNOWN_EFFECTS`] order (the file's order).
+    pub fn arrays(&self) -> [(&'static str, &Option<Vec<f64>>); 9] {
+        [
+            ("viscous", &self.viscous),
+            ("coulomb", &self.coulomb),
+            ("stribeck", &self.stribeck),
+            ("armature", &self.armature),
+            ("offset", &self.offset),
+            ("spring", &self.spring),
+            ("loadcoulomb", &self.loadcoulomb),
+            ("sign_velocity", &self.sign_velocity),
+            ("stribeck_velocity", &self.stribeck_velocity),
+        ]
+    }
+
+    /// The coefficients of `effect` (one per joint, when given).
+    pub fn coefficients_mut(&mut self, effect: Effect) -> &mut Option<Vec<f64>> {
+        match effect {
+            Effect::Viscous => &mut self.viscous,
+            Effect::Coulomb => &mut self.coulomb,
+            Effect::Stribeck => &mut self.stribeck,
+            Effect::Offset => &mut self.offset,
+            Effect::Armature => &mut self.armature,
+            Effect::Spring => &mut self.spring,
+            Effect::LoadCoulomb => &mut self.loadcoulomb,
+        }
+    }
+
     /// The additive effects and their coefficients, in summation order.
     fn additive(&self) -> [(Effect, &Option<Vec<f64>>); 5] {
         [
@@ -457,18 +485,7 @@ impl InertialParams {
             let _ = writeln!(s, "com = {}", nums(&l.com));
             let _ = writeln!(s, "inertia_origin = {}", nums(&l.inertia_origin));
         }
-        let e = &self.effects;
-        let arrays = [
-            ("viscous", &e.viscous),
-            ("coulomb", &e.coulomb),
-            ("stribeck", &e.stribeck),
-            ("armature", &e.armature),
-            ("offset", &e.offset),
-            ("spring", &e.spring),
-            ("loadcoulomb", &e.loadcoulomb),
-            ("sign_velocity", &e.sign_velocity),
-            ("stribeck_velocity", &e.stribeck_velocity),
-        ];
+        let arrays = self.effects.arrays();
         if arrays.iter().any(|(_, v)| v.is_some()) {
             s.push_str("\n[effects]\n");
             for (k, v) in arrays {

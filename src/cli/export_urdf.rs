@@ -36,18 +36,16 @@ pub fn run(args: &Args) -> Result<()> {
             for w in &p.warnings {
                 eprintln!("warning: {w}");
             }
-            let e = &p.effects;
-            let dropped: Vec<&str> = [
-                ("stribeck", e.stribeck.is_some()),
-                ("armature", e.armature.is_some()),
-                ("offset", e.offset.is_some()),
-                ("spring", e.spring.is_some()),
-                ("loadcoulomb", e.loadcoulomb.is_some()),
-                ("sign_velocity", e.sign_velocity.is_some()),
-            ]
-            .into_iter()
-            .filter_map(|(k, present)| present.then_some(k))
-            .collect();
+            // URDF's <dynamics damping friction> carries viscous and Coulomb friction only.
+            let dropped: Vec<&str> = p
+                .effects
+                .arrays()
+                .into_iter()
+                .filter(|(k, v)| {
+                    v.is_some() && !["viscous", "coulomb", "stribeck_velocity"].contains(k)
+                })
+                .map(|(k, _)| k)
+                .collect();
             if !dropped.is_empty() {
                 eprintln!(
                     "note: viscous and Coulomb friction are exported as <dynamics damping friction>; URDF has no place for {} — they are not exported",

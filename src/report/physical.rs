@@ -8,7 +8,6 @@ use serde_json::{json, Value};
 
 use super::{err_cells, num, pct};
 use crate::dh::DhTable;
-use crate::effects::Effect;
 use crate::identify::Outcome;
 use crate::params::{Effects, InertialParams};
 
@@ -18,16 +17,8 @@ pub fn params(o: &Outcome) -> Option<InertialParams> {
     let n = o.dof;
     let mut e = Effects::default();
     for &(t, v) in &ph.effects {
-        let slot = match t.effect {
-            Effect::Viscous => &mut e.viscous,
-            Effect::Coulomb => &mut e.coulomb,
-            Effect::Stribeck => &mut e.stribeck,
-            Effect::Offset => &mut e.offset,
-            Effect::Armature => &mut e.armature,
-            Effect::Spring => &mut e.spring,
-            Effect::LoadCoulomb => &mut e.loadcoulomb,
-        };
-        slot.get_or_insert_with(|| vec![0.0; n])[t.joint] = v;
+        e.coefficients_mut(t.effect)
+            .get_or_insert_with(|| vec![0.0; n])[t.joint] = v;
     }
     // The model's friction sign is the fitted tanh(q̇/v); the plant must use the same.
     if e.coulomb.is_some() || e.stribeck.is_some() || e.loadcoulomb.is_some() {

@@ -476,3 +476,14 @@ fn params_effects_smoothed_friction_matches_its_closed_form() {
     assert_eq!(exact.torque(0, 0.0, 1e-9, 0.0), 0.5);
     assert_eq!(exact.torque(0, 0.0, 0.0, 0.0), 0.0);
 }
+
+/// One list of `[effects]` keys: what the reader accepts is what the writer writes.
+#[test]
+fn every_effects_key_is_read_and_written() {
+    let keys: Vec<&str> = dynid::params::Effects::default()
+        .arrays()
+        .iter()
+        .map(|(k, _)| *k)
+        .collect();
+    assert_eq!(keys, dynid::params::KNOWN_EFFECTS);
+}
