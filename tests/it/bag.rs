@@ -10,14 +10,7 @@ use std::process::{Command, Output};
 use dynid::data::{write_header, write_row, Trajectory};
 use dynid::dh::DhTable;
 
-use crate::common::project_python;
-
-fn dynid(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_dynid"))
-        .args(args)
-        .output()
-        .expect("run dynid")
-}
+use crate::common::{dynid, project_python};
 
 fn text(o: &Output) -> String {
     format!(

@@ -1,16 +1,9 @@
 //! End-to-end tests of the `dynid` binary on small files.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
 use crate::common::*;
-
-fn dynid(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_dynid"))
-        .args(args)
-        .output()
-        .expect("run dynid")
-}
 
 fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()

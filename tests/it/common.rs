@@ -198,3 +198,36 @@ pub fn project_python() -> std::path::PathBuf {
     }
     "python3".into()
 }
+
+/// Runs the `dynid` binary under test.
+pub fn dynid(args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_dynid"))
+        .args(args)
+        .output()
+        .expect("run dynid")
+}
+
+/// Runs the project's Python on `script` (relative to the crate) with `--dynid <binary under
+/// test>` and `args`; prints its output and fails the test unless it exits 0 (77: a library is
+/// missing — the test command installs it). Returns the output text.
+pub fn python_script(script: &str, args: &[&std::ffi::OsStr]) -> String {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(script);
+    let o = std::process::Command::new(project_python())
+        .arg(&path)
+        .args(["--dynid", env!("CARGO_BIN_EXE_dynid")])
+        .args(args)
+        .output()
+        .unwrap_or_else(|e| panic!("run {script}: {e}"));
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    eprintln!("{text}");
+    assert!(
+        o.status.success(),
+        "{script} failed (exit {:?}; 77 = numpy, Pinocchio, MuJoCo or mcap missing: run scripts/test.sh):\n{text}",
+        o.status.code()
+    );
+    text
+}

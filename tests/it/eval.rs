@@ -2,33 +2,14 @@
 //! an oracle fit) run from the test command: its quick subset, and single cases that reproduce
 //! failure patterns of issue 18.
 
-use std::path::Path;
-use std::process::Command;
-
 use crate::common::*;
 
 /// Runs the suite with `args`; returns (summary.json, cases.json).
 fn suite(args: &[&str]) -> (serde_json::Value, serde_json::Value) {
     let dir = tempfile::tempdir().unwrap();
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("eval/suite.py");
-    let o = Command::new(project_python())
-        .arg(&script)
-        .args(["--dynid", env!("CARGO_BIN_EXE_dynid"), "--out"])
-        .arg(dir.path())
-        .args(args)
-        .output()
-        .expect("run eval/suite.py");
-    let text = format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    );
-    eprintln!("{text}");
-    assert!(
-        o.status.success(),
-        "eval/suite.py failed (exit {:?}; 77 = MuJoCo missing: run scripts/test.sh):\n{text}",
-        o.status.code()
-    );
+    let mut all: Vec<&std::ffi::OsStr> = vec!["--out".as_ref(), dir.path().as_os_str()];
+    all.extend(args.iter().map(|a| std::ffi::OsStr::new(*a)));
+    python_script("eval/suite.py", &all);
     let read = |f: &str| -> serde_json::Value {
         serde_json::from_str(&std::fs::read_to_string(dir.path().join(f)).unwrap()).unwrap()
     };

@@ -16,7 +16,7 @@ use dynid::trajectory::{sample, Motion};
 use indicatif::ProgressBar;
 use rand::Rng;
 
-use super::common::{planar2_phi, rng};
+use super::common::{dynid, planar2_phi, rng};
 
 const THETA: [f64; 6] = [2.0, 2.0, 0.0, 1.0, 1.0, 0.0];
 
@@ -400,13 +400,6 @@ fn iteration_converges_below_the_papers_0_01_after_three_iterations() {
             .fold(0.0_f64, |a, &b| a.max(b))
             < paper[0].max_tracking_error[0].max(paper[0].max_tracking_error[1])
     );
-}
-
-fn dynid(args: &[&str]) -> std::process::Output {
-    std::process::Command::new(env!("CARGO_BIN_EXE_dynid"))
-        .args(args)
-        .output()
-        .unwrap()
 }
 
 /// `dynid simulate --arm planar2 --params P --trajectory T EXTRA…`.

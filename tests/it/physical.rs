@@ -5,16 +5,9 @@
 //! prediction.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
 use crate::common::*;
-
-fn dynid(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_dynid"))
-        .args(args)
-        .output()
-        .expect("run dynid")
-}
 
 fn data(rel: &str) -> String {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -55,31 +48,13 @@ fn report(out: &Path) -> serde_json::Value {
 }
 
 fn check_identified(arm: &str, out: &Path) {
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/physical/check_identified.py");
-    let o = Command::new(project_python())
-        .arg(&script)
-        .args([
-            "--dynid",
-            env!("CARGO_BIN_EXE_dynid"),
-            "--arm",
-            arm,
-            "--report",
-        ])
-        .arg(out)
-        .output()
-        .expect("run check_identified.py");
-    let text = format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    );
-    eprintln!("{text}");
-    assert!(
-        o.status.success(),
-        "{}: the identified model fails the outside check (exit {:?}; 77 = numpy, Pinocchio or MuJoCo missing: run scripts/test.sh):\n{text}",
-        out.display(),
-        o.status.code()
-    );
+    let args = [
+        "--arm".as_ref(),
+        arm.as_ref(),
+        "--report".as_ref(),
+        out.as_os_str(),
+    ];
+    python_script("tests/physical/check_identified.py", &args);
 }
 
 fn csv_columns(path: &Path) -> (Vec<String>, Vec<Vec<f64>>) {
@@ -298,30 +273,13 @@ fn physical_off_and_a_bad_prior() {
 fn consistent_estimate_beats_least_squares_on_short_mujoco_runs() {
     let dir = tempfile::tempdir().unwrap();
     let rows = dir.path().join("rows.json");
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/physical/consistent_vs_ls.py");
-    let o = Command::new(project_python())
-        .arg(&script)
-        .args([
-            "--dynid",
-            env!("CARGO_BIN_EXE_dynid"),
-            "--seeds",
-            "8",
-            "--json",
-        ])
-        .arg(&rows)
-        .output()
-        .expect("run consistent_vs_ls.py");
-    let text = format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    );
-    eprintln!("{text}");
-    assert!(
-        o.status.success(),
-        "exit {:?} (77 = MuJoCo missing: run scripts/test.sh):\n{text}",
-        o.status.code()
-    );
+    let args = [
+        "--seeds".as_ref(),
+        "8".as_ref(),
+        "--json".as_ref(),
+        rows.as_os_str(),
+    ];
+    python_script("tests/physical/consistent_vs_ls.py", &args);
     let rows: Vec<serde_json::Value> =
         serde_json::from_str(&std::fs::read_to_string(&rows).unwrap()).unwrap();
     let not_physical = rows

@@ -893,13 +893,6 @@ fn suspicious_inertias_are_kept_with_a_warning() {
 // ---------------------------------------------------------------------------------------------
 // Command line.
 
-fn dynid(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_dynid"))
-        .args(args)
-        .output()
-        .expect("run dynid")
-}
-
 #[test]
 fn cli_imports_exports_and_computes_torques() {
     let dir = tempfile::tempdir().unwrap();
