@@ -510,15 +510,7 @@ impl InertialParams {
                 } else {
                     [0.0; 3]
                 };
-                let [x, y, z] = com;
-                let shift = [
-                    m * (y * y + z * z),
-                    -m * x * y,
-                    -m * x * z,
-                    m * (x * x + z * z),
-                    -m * y * z,
-                    m * (x * x + y * y),
-                ];
+                let shift = parallel_axis(m, com);
                 let inertia_origin = [c[0], c[1], c[2], c[3], c[4], c[5]];
                 LinkInertia {
                     name: None,
@@ -563,16 +555,7 @@ fn read_link(t: &TableView<'_>) -> Result<LinkInertia, ParamsError> {
     let ic = t.f64_array_opt("inertia_com", Some(6))?;
     let io = t.f64_array_opt("inertia_origin", Some(6))?;
     let six = |v: Vec<f64>| [v[0], v[1], v[2], v[3], v[4], v[5]];
-    // Parallel-axis theorem, tensor form: I_O = I_C + m (|c|² 1 − c cᵀ).
-    let [x, y, z] = com;
-    let shift = [
-        m * (y * y + z * z),
-        -m * x * y,
-        -m * x * z,
-        m * (x * x + z * z),
-        -m * y * z,
-        m * (x * x + y * y),
-    ];
+    let shift = parallel_axis(m, com);
     let (inertia_com, inertia_origin) = match (ic, io) {
         (Some(_), Some(_)) => {
             return Err(ParamsError {
@@ -598,6 +581,19 @@ fn read_link(t: &TableView<'_>) -> Result<LinkInertia, ParamsError> {
         inertia_com,
         inertia_origin,
     })
+}
+
+/// The parallel-axis term `m (|c|² 1 − c cᵀ)` as `[ixx, ixy, ixz, iyy, iyz, izz]`: the inertia
+/// about the link origin is the one about the centre of mass `c` plus this.
+fn parallel_axis(m: f64, [x, y, z]: [f64; 3]) -> [f64; 6] {
+    [
+        m * (y * y + z * z),
+        -m * x * y,
+        -m * x * z,
+        m * (x * x + z * z),
+        -m * y * z,
+        m * (x * x + y * y),
+    ]
 }
 
 fn read_effects(t: &TableView<'_>, dof: usize) -> Result<Effects, ParamsError> {
