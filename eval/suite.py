@@ -198,7 +198,12 @@ def simulate(mujoco, spec: dict, urdf: Path, work: Path) -> tuple[list[Path], li
     for e in spec["effects"]:
         j = e["joint"] - 1
         col = column(e["effect"], q[:, j], dq[:, j], ddq[:, j])
-        coef = e["share"] * rms[j] / max(float(np.sqrt((col**2).mean())), 1e-12)
+        col_rms = max(float(np.sqrt((col**2).mean())), 1e-12)
+        if "coefficient" in e:  # a pattern's absolute coefficient: its share follows
+            coef = float(e["coefficient"])
+            e = {**e, "share": abs(coef) * col_rms / rms[j]}
+        else:
+            coef = e["share"] * rms[j] / col_rms
         effects.append({**e, "coefficient": coef})
         if e["effect"] == "viscous":
             model.dof_damping[j] = coef
@@ -258,11 +263,28 @@ def identify(dynid: str, arm: str, runs: list[Path], out: Path, extra: list[str]
     }
 
 
-def run_case(args: tuple[str, int, str, bool]) -> dict:
-    dynid, seed, keep, quick = args
+def pattern_spec(path: Path) -> dict:
+    """A hand-written case (`eval/patterns/*.json`): the seed's draws, overridden by the file's keys (`arm`, a
+    generated arm's name; `effects` with a `share` or an absolute `coefficient`; `rate`, `jitter`, `drop`,
+    `encoder_bits`, `noise`, `velocity_column`, `excitation`, `duration`)."""
+    over = json.loads(path.read_text())
+    spec = case_spec(int(over.get("seed", 1)))
+    if "arm" in over:
+        spec["arm"], spec["table"], spec["kinds"] = over["arm"], None, generated_kinds(over["arm"])
+        spec["params"] = "[[link]]".join(spec["params"].split("[[link]]")[: len(spec["kinds"]) + 1])
+        spec["effects"] = [e for e in spec["effects"] if e["joint"] <= len(spec["kinds"])]
+        if len(spec["params"].split("[[link]]")) <= len(spec["kinds"]):
+            spec["params"] = random_params(np.random.default_rng(spec["seed"]), len(spec["kinds"]))
+    spec.update({k: v for k, v in over.items() if k not in ("arm", "seed", "note")})
+    spec["pattern"] = path.stem
+    return spec
+
+
+def run_case(args: tuple[str, int, str, bool, str]) -> dict:
+    dynid, seed, keep, quick, pattern = args
     import mujoco
 
-    spec = case_spec(seed, quick)
+    spec = pattern_spec(Path(pattern)) if pattern else case_spec(seed, quick)
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(keep) / f"case{seed}" if keep else Path(tmp)
         work.mkdir(parents=True, exist_ok=True)
@@ -398,6 +420,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, required=True)
     ap.add_argument("--keep", action="store_true", help="keep every case's logs and reports under OUT/")
     ap.add_argument("--quick", action="store_true", help="the test command's subset: <= 4 joints, <= 500 Hz, 15 s")
+    ap.add_argument("--pattern", type=Path, help="run one hand-written case (eval/patterns/*.json) instead")
     a = ap.parse_args(argv)
     try:
         import mujoco  # noqa: F401
@@ -407,7 +430,10 @@ def main(argv: list[str] | None = None) -> int:
     a.out.mkdir(parents=True, exist_ok=True)
     seeds = range(a.first_seed, a.first_seed + a.cases)
     keep = str(a.out.resolve()) if a.keep else ""
-    jobs = [(str(Path(a.dynid).resolve()), s, keep, a.quick) for s in seeds]
+    pattern = str(a.pattern.resolve()) if a.pattern else ""
+    if pattern:
+        seeds = range(1)
+    jobs = [(str(Path(a.dynid).resolve()), s, keep, a.quick, pattern) for s in seeds]
     start = time.perf_counter()
     cases = []
     with ProcessPoolExecutor(max_workers=a.jobs) as pool:

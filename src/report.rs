@@ -21,7 +21,7 @@ use plotters::prelude::*;
 use serde_json::{json, Value};
 
 use crate::dh::DhTable;
-use crate::identify::{Errors, Outcome, Predictions, KEEP_RATE_PER_CUTOFF};
+use crate::identify::{Errors, ModelResult, Outcome, Predictions, KEEP_RATE_PER_CUTOFF};
 use crate::io::{atomic_write, WriteError};
 
 pub mod leave_one_out;
@@ -115,6 +115,18 @@ fn errors_json(e: &Errors) -> Value {
     json!({ "per_joint": e.per_joint, "overall": e.overall })
 }
 
+/// A model's errors in `report.json`: training, validation, held-out, and `from_states` (the
+/// same from the estimated states) when the prediction is the low-passed one.
+pub(crate) fn model_errors_json(r: &ModelResult) -> Value {
+    let opt = |e: &Option<Errors>| e.as_ref().map(errors_json).unwrap_or(Value::Null);
+    let mut v = json!({ "train": errors_json(&r.train), "validation": opt(&r.validation), "heldout_train_blocks": r.heldout_rms });
+    if let Some(s) = &r.from_states {
+        v["from_states"] =
+            json!({ "train": errors_json(&s.train), "validation": opt(&s.validation) });
+    }
+    v
+}
+
 /// The `report.json` document.
 pub fn json_report(o: &Outcome, command: &str) -> Value {
     let eff: Vec<Value> = o
@@ -145,7 +157,6 @@ pub fn json_report(o: &Outcome, command: &str) -> Value {
             })
         })
         .collect();
-    let opt = |e: &Option<Errors>| e.as_ref().map(errors_json).unwrap_or(Value::Null);
     json!({
         "arm": o.arm,
         "dof": o.dof,
@@ -157,8 +168,9 @@ pub fn json_report(o: &Outcome, command: &str) -> Value {
         "effects_found": found,
         "not_identifiable": o.merged.iter().map(|(t, w)| json!({"effect": t, "merged_with": w})).collect::<Vec<_>>(),
         "error": {
-            "before": { "train": errors_json(&o.before.train), "validation": opt(&o.before.validation), "heldout_train_blocks": o.before.heldout_rms },
-            "after": { "train": errors_json(&o.after.train), "validation": opt(&o.after.validation), "heldout_train_blocks": o.after.heldout_rms },
+            "before": model_errors_json(&o.before),
+            "after": model_errors_json(&o.after),
+            "prediction": if o.after.from_states.is_some() { "low-passed (from the parallel-filtered rows); from_states: the same models' torque from the estimated states" } else { "from the estimated states" },
             "definition": "relative RMS ||tau_hat - tau|| / ||tau|| against the torque as measured in the file (unfiltered), per joint and over all joints",
         },
         "steps": o.steps,
@@ -286,26 +298,72 @@ pub fn markdown(o: &Outcome, command: &str, plots: &[String]) -> String {
     m
 }
 
-/// The torque error table: declared and augmented model, training and validation.
+/// The torque error table: declared and augmented model, training and validation — each from
+/// the prediction the smoothing chose and, when that is the low-passed one, also from the
+/// estimated states (what a controller fed those states would compute).
 fn errors_section(m: &mut String, o: &Outcome) {
     let n = o.dof;
     let _ = writeln!(
         m,
         "## Torque error (relative RMS ‖τ̂−τ‖/‖τ‖ against the torque as measured in the file)\n"
     );
-    let head: Vec<String> = (1..=n).map(|j| format!("joint {j}")).collect();
-    let _ = writeln!(m, "| model | data | {} | overall |", head.join(" | "));
-    let _ = writeln!(m, "|---|---|{}---|", "---|".repeat(n));
-    for (label, r) in [
+    let low_passed = o.after.from_states.is_some();
+    if low_passed {
+        let _ = writeln!(m, "The scan chose to predict from the parallel-filtered rows (*low-passed*): the model's torque is low-passed like the rows it was fitted to. A controller or simulator computing τ from the states sees the *from states* rows.\n");
+    }
+    let models = [
         ("before (declared: rigid body)", &o.before),
         ("after (augmented)", &o.after),
-    ] {
-        let _ = writeln!(m, "| {label} | training | {} |", err_cells(&r.train));
+    ];
+    model_error_table(m, n, "model", &models);
+    let _ = writeln!(m);
+}
+
+/// Rows `label | training/validation | prediction | per joint | overall` for `models`: the
+/// chosen prediction's errors and, where it is the low-passed one, those from the states.
+pub(crate) fn model_error_table(
+    m: &mut String,
+    n: usize,
+    what: &str,
+    models: &[(&str, &ModelResult)],
+) {
+    let head: Vec<String> = (1..=n).map(|j| format!("joint {j}")).collect();
+    let _ = writeln!(
+        m,
+        "| {what} | data | prediction | {} | overall |",
+        head.join(" | ")
+    );
+    let _ = writeln!(m, "|---|---|---|{}---|", "---|".repeat(n));
+    for (label, r) in models {
+        let states = r.from_states.as_ref();
+        let chosen = if states.is_some() {
+            "low-passed"
+        } else {
+            "from states"
+        };
+        let _ = writeln!(
+            m,
+            "| {label} | training | {chosen} | {} |",
+            err_cells(&r.train)
+        );
+        if let Some(s) = states {
+            let _ = writeln!(
+                m,
+                "| {label} | training | from states | {} |",
+                err_cells(&s.train)
+            );
+        }
         if let Some(v) = &r.validation {
-            let _ = writeln!(m, "| {label} | validation | {} |", err_cells(v));
+            let _ = writeln!(m, "| {label} | validation | {chosen} | {} |", err_cells(v));
+        }
+        if let Some(v) = states.and_then(|s| s.validation.as_ref()) {
+            let _ = writeln!(
+                m,
+                "| {label} | validation | from states | {} |",
+                err_cells(v)
+            );
         }
     }
-    let _ = writeln!(m);
 }
 
 /// The rigid → + effect → … table.

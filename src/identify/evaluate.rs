@@ -20,6 +20,15 @@ pub struct Judged<'a> {
     pub loo: Option<&'a [Vec<f64>]>,
 }
 
+/// Which prediction of a model is judged: the one the file's [`super::prepare::Smoothing`]
+/// chose (from the parallel-filtered rows or from the estimated states), or always the one from
+/// the estimated states (what a controller fed those states would compute).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Prediction {
+    Chosen,
+    States,
+}
+
 /// Per model and joint, `Σ (τ − τ̂)²` over the raw samples (with the full-data parameters) and
 /// the same with each block predicted by the fit without it; per joint `Σ τ²`.
 #[derive(Debug, Clone)]
@@ -50,17 +59,7 @@ impl RawSums {
 
     /// Errors of model `m` with its full-data parameters.
     pub fn errors(&self, m: usize) -> Errors {
-        let per_joint = (0..self.tss.len())
-            .map(|j| {
-                if self.tss[j] > 0.0 {
-                    (self.sse[m][j] / self.tss[j]).sqrt()
-                } else {
-                    f64::NAN
-                }
-            })
-            .collect();
-        let overall = (self.sse[m].iter().sum::<f64>() / self.tss.iter().sum::<f64>()).sqrt();
-        Errors { per_joint, overall }
+        Errors::from_sums(self.sse[m].clone(), self.tss.clone())
     }
 
     /// Held-out relative RMS error of model `m`, pooled over joints.
@@ -79,6 +78,7 @@ pub fn raw_sums(
     files: &[Prepared],
     blocks: Option<&[usize]>,
     models: &[Judged],
+    prediction: Prediction,
 ) -> RawSums {
     let n = layout.dof;
     let active: Vec<Vec<usize>> = (0..n).map(|j| layout.active(j)).collect();
@@ -119,7 +119,8 @@ pub fn raw_sums(
                         }
                     }
                 }
-                let pc = Predicted::new(p, &mut rows, &active, core, &sets, &wanted);
+                let filtered = prediction == Prediction::Chosen && p.smoothing.filtered_prediction;
+                let pc = Predicted::new(p, &mut rows, &active, core, &sets, &wanted, filtered);
                 raw_in_core(p, core, 1, |_, _, tau, (k, s)| {
                     let blk = p.block_of(k + usize::from(s >= 0.5), nblocks);
                     for (ss, t) in sums.tss.iter_mut().zip(tau) {
@@ -158,10 +159,22 @@ pub struct ModelResult {
     pub validation: Option<Errors>,
     /// Held-out error of leave-one-block-out refits on the (filtered) training data.
     pub heldout_rms: f64,
+    /// The same model's errors with its torque predicted from the estimated states, when the
+    /// errors above are of the prediction from the parallel-filtered rows (`None` otherwise:
+    /// the errors above are already from the states).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub from_states: Option<StateErrors>,
     #[serde(skip)]
     pub subset: Vec<usize>,
     #[serde(skip)]
     pub x: Vec<f64>,
+}
+
+/// A model's errors with its torque predicted from the estimated states.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct StateErrors {
+    pub train: Errors,
+    pub validation: Option<Errors>,
 }
 
 /// Relative RMS errors against measured torque.
@@ -169,4 +182,38 @@ pub struct ModelResult {
 pub struct Errors {
     pub per_joint: Vec<f64>,
     pub overall: f64,
+    /// Per joint `Σ (τ − τ̂)²` and `Σ τ²` behind the ratios (to pool errors over files).
+    #[serde(skip)]
+    pub sse: Vec<f64>,
+    #[serde(skip)]
+    pub tss: Vec<f64>,
+}
+
+impl Errors {
+    /// The errors of several files' samples together (`None` for none).
+    pub fn pooled<'a>(parts: impl IntoIterator<Item = &'a Errors>) -> Option<Errors> {
+        let mut it = parts.into_iter();
+        let first = it.next()?;
+        let (mut sse, mut tss) = (first.sse.clone(), first.tss.clone());
+        for e in it {
+            sse.iter_mut().zip(&e.sse).for_each(|(a, b)| *a += b);
+            tss.iter_mut().zip(&e.tss).for_each(|(a, b)| *a += b);
+        }
+        Some(Errors::from_sums(sse, tss))
+    }
+
+    /// Relative RMS errors from per-joint sums of squared residuals and of squared torque.
+    pub fn from_sums(sse: Vec<f64>, tss: Vec<f64>) -> Errors {
+        let per_joint = sse
+            .iter()
+            .zip(&tss)
+            .map(|(e, t)| if *t > 0.0 { (e / t).sqrt() } else { f64::NAN })
+            .collect();
+        Errors {
+            per_joint,
+            overall: (sse.iter().sum::<f64>() / tss.iter().sum::<f64>()).sqrt(),
+            sse,
+            tss,
+        }
+    }
 }

@@ -63,7 +63,7 @@ mod scan;
 mod select;
 pub mod synth;
 
-pub use evaluate::{raw_sums, Errors, Judged, ModelResult, RawSums};
+pub use evaluate::{raw_sums, Errors, Judged, ModelResult, Prediction, RawSums, StateErrors};
 pub use layout::Layout;
 pub use load_stage::LoadModel;
 pub use outcome::{Estimated, FileInfo, Outcome, StepRow};
@@ -210,6 +210,14 @@ fn scan_and_run(
     }
     if !out.cutoff_scan.is_empty() {
         out.scan_sampling = scan_sampling(train);
+    } else if cfg.derivative.cutoff_hz.is_none() {
+        let fc = out
+            .train
+            .first()
+            .map_or(f64::NAN, |f| f.derivative.cutoff_hz);
+        out.warnings.push(format!(
+            "the automatic cut-off scan could fit none of its trials (the rigid model with every candidate effect is rank-deficient on every cut-off's data), so the spectral rule's {fc:.2} Hz was used untested — give `--cutoff` from a range you trust, or more varied motion"
+        ));
     }
     Ok(out)
 }
@@ -300,36 +308,35 @@ pub fn leave_one_out(
     Ok(out)
 }
 
-/// Pooled validation error over a leave-one-out study: `‖τ̂−τ‖/‖τ‖` over all held-out files,
-/// per joint and overall, for the `before` and `after` models.
-/// Validation errors pooled over the folds' validation files: before, after and — when every
-/// fold has it — the consistent estimate.
+/// Validation errors pooled over a leave-one-out study's validation files (`‖τ̂−τ‖/‖τ‖` over
+/// all held-out samples, per joint and overall): before, after and — when every fold has it —
+/// the consistent estimate, each of the prediction its fold chose.
 pub fn pooled_validation(outcomes: &[Outcome]) -> Option<(Errors, Errors, Option<Errors>)> {
-    let n = outcomes.first()?.dof;
-    let mut acc = [vec![0.0; n], vec![0.0; n], vec![0.0; n]];
-    let mut tss = vec![0.0; n];
-    let mut all_consistent = true;
-    for o in outcomes {
-        let p = o.predictions.as_ref()?;
-        all_consistent &= p.consistent;
-        p.rows(0, p.len(), |_, tau, before, after, consistent| {
-            for j in 0..n {
-                acc[0][j] += (before[j] - tau[j]).powi(2);
-                acc[1][j] += (after[j] - tau[j]).powi(2);
-                if let Some(c) = consistent {
-                    acc[2][j] += (c[j] - tau[j]).powi(2);
-                }
-                tss[j] += tau[j].powi(2);
-            }
-        });
-    }
-    let mk = |s: &Vec<f64>| Errors {
-        per_joint: (0..n).map(|j| (s[j] / tss[j]).sqrt()).collect(),
-        overall: (s.iter().sum::<f64>() / tss.iter().sum::<f64>()).sqrt(),
+    pooled(outcomes, |r| r.validation.as_ref())
+}
+
+/// [`pooled_validation`] with every model's torque predicted from the estimated states (a fold
+/// that predicts from the filtered rows contributes its `from_states` errors).
+pub fn pooled_validation_from_states(
+    outcomes: &[Outcome],
+) -> Option<(Errors, Errors, Option<Errors>)> {
+    pooled(outcomes, |r| match &r.from_states {
+        Some(s) => s.validation.as_ref(),
+        None => r.validation.as_ref(),
+    })
+}
+
+fn pooled(
+    outcomes: &[Outcome],
+    pick: impl Fn(&ModelResult) -> Option<&Errors>,
+) -> Option<(Errors, Errors, Option<Errors>)> {
+    let all = |f: &dyn Fn(&Outcome) -> Option<&ModelResult>| -> Option<Errors> {
+        let parts: Option<Vec<&Errors>> = outcomes.iter().map(|o| f(o).and_then(&pick)).collect();
+        Errors::pooled(parts?)
     };
     Some((
-        mk(&acc[0]),
-        mk(&acc[1]),
-        all_consistent.then(|| mk(&acc[2])),
+        all(&|o| Some(&o.before))?,
+        all(&|o| Some(&o.after))?,
+        all(&|o| o.consistent.as_ref()),
     ))
 }

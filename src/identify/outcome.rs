@@ -4,7 +4,7 @@
 use serde::Serialize;
 
 use super::base::BaseModel;
-use super::evaluate::{raw_sums, Errors, Judged, ModelResult};
+use super::evaluate::{raw_sums, Errors, Judged, ModelResult, Prediction, StateErrors};
 use super::layout::{Layout, Merged};
 use super::load_stage::{load_model, LoadModel};
 use super::ls;
@@ -293,13 +293,52 @@ impl Models {
                 loo: None,
             });
         }
-        let train_sums = raw_sums(base, layout, train, Some(problem.raw_blocks()), &judged);
-        let val_sums = val.map(|p| raw_sums(base, layout, std::slice::from_ref(p), None, &judged));
+        let blocks = Some(problem.raw_blocks());
+        let train_sums = raw_sums(base, layout, train, blocks, &judged, Prediction::Chosen);
+        let val_sums = val.map(|p| {
+            let one = std::slice::from_ref(p);
+            raw_sums(base, layout, one, None, &judged, Prediction::Chosen)
+        });
+        // When the prediction is from the filtered rows, the rigid, final and consistent
+        // models are judged again from the estimated states (full-data parameters only).
+        let filtered = train
+            .iter()
+            .chain(val)
+            .any(|p| p.smoothing.filtered_prediction);
+        let states: Vec<usize> = [0, 1]
+            .into_iter()
+            .chain(consistent.map(|_| judged.len() - 1))
+            .collect();
+        let state_sums = filtered.then(|| {
+            let js: Vec<Judged> = states
+                .iter()
+                .map(|&m| Judged {
+                    subset: judged[m].subset,
+                    x: judged[m].x,
+                    loo: None,
+                })
+                .collect();
+            let t = raw_sums(base, layout, train, blocks, &js, Prediction::States);
+            let v = val.map(|p| {
+                let one = std::slice::from_ref(p);
+                raw_sums(base, layout, one, None, &js, Prediction::States)
+            });
+            (t, v)
+        });
+        let from_states = |m: usize| {
+            let i = states.iter().position(|&s| s == m)?;
+            let (t, v) = state_sums.as_ref()?;
+            Some(StateErrors {
+                train: t.errors(i),
+                validation: v.as_ref().map(|v| v.errors(i)),
+            })
+        };
         let result = |m: usize| ModelResult {
             terms: self.terms[m].iter().map(Term::label).collect(),
             train: train_sums.errors(m),
             validation: val_sums.as_ref().map(|v| v.errors(m)),
             heldout_rms: train_sums.heldout(m),
+            from_states: from_states(m),
             subset: self.fitted[m].subset.clone(),
             x: self.fitted[m].fit.x.clone(),
         };
@@ -312,6 +351,7 @@ impl Models {
                 train: train_sums.errors(m),
                 validation: val_sums.as_ref().map(|v| v.errors(m)),
                 heldout_rms: f64::NAN,
+                from_states: from_states(m),
                 subset: self.fitted[1].subset.clone(),
                 x: x.to_vec(),
             }

@@ -34,10 +34,10 @@ impl Predicted {
         (a, b): (usize, usize),
         coefs: &[Vec<Vec<f64>>],
         wanted: &[bool],
+        filtered: bool,
     ) -> Predicted {
         let (n, nc) = (rows.layout.dof, rows.layout.ncols());
         let g = p.est.grid;
-        let filtered = p.smoothing.filtered_prediction;
         // One sample either side at least, for the interpolation to raw sample times.
         let reach = if filtered {
             p.rfilter.as_zero_phase().reach().max(1)
@@ -179,7 +179,15 @@ pub(super) fn for_predictions(
     let mut dq = vec![0.0; n];
     let mut preds = vec![vec![0.0; n]; models.len()];
     for core in raw_cores(p) {
-        let pc = Predicted::new(p, &mut rows, &active, core, &coef, &wanted);
+        let pc = Predicted::new(
+            p,
+            &mut rows,
+            &active,
+            core,
+            &coef,
+            &wanted,
+            p.smoothing.filtered_prediction,
+        );
         raw_in_core(p, core, stride, |_, t, tau, (k, s)| {
             for j in 0..n {
                 let (d, i) = (&pc.states.dq[j], k - pc.lo);

@@ -5,7 +5,7 @@
 use nalgebra::{DMatrix, DVector};
 
 use super::base::BaseModel;
-use super::evaluate::{raw_sums, Judged};
+use super::evaluate::{raw_sums, Judged, Prediction};
 use super::layout::Layout;
 use super::ls::{self, Accumulator};
 use super::prepare::{cores, Prepared};
@@ -121,7 +121,14 @@ impl Problem {
             x: None,
             loo: Some(&loo),
         }];
-        let sums = raw_sums(base, &self.layout, train, Some(self.raw_blocks()), &m);
+        let sums = raw_sums(
+            base,
+            &self.layout,
+            train,
+            Some(self.raw_blocks()),
+            &m,
+            Prediction::Chosen,
+        );
         Ok(sums.heldout(0))
     }
 
@@ -170,6 +177,22 @@ impl Problem {
             params: dependent.iter().map(|&c| self.layout.col_name(c)).collect(),
             hint: String::new(),
         }
+    }
+
+    /// `subset` without the columns this data cannot tell apart from earlier ones (the effects
+    /// come after the base parameters, so an effect goes: e.g. an offset on a vertical prismatic
+    /// joint, which is its gravity load), so that a fit of every candidate at once exists.
+    pub fn independent(&self, subset: &[usize]) -> Vec<usize> {
+        let w = vec![1.0; self.layout.dof];
+        let mut s = subset.to_vec();
+        while let Err(e) = ls::solve_x(&self.total_factors(&w), &s) {
+            let before = s.len();
+            s.retain(|c| !e.dependent.contains(c));
+            if s.len() == before {
+                break;
+            }
+        }
+        s
     }
 
     /// Weighted fit over the full training set.

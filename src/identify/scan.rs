@@ -3,6 +3,8 @@
 //! the measured torque; long training sets are scanned on evenly spaced pieces
 //! ([`scan_pieces`]).
 
+use std::f64::consts::SQRT_2;
+
 use serde::Serialize;
 
 use super::base::BaseModel;
@@ -80,9 +82,10 @@ pub struct FilterChoice {
     pub smoothing: Smoothing,
 }
 
-/// The automatic cut-off: the spectrum gives the motion band `f_m` (largest over files and
-/// joints, see [`crate::derivative::auto_cutoff`]); cut-offs `f_m · 2^(k/2)`, k = −2..7, below the
-/// noise edge and 0.2·fs are tried (only the given one with `--cutoff`), each with every
+/// The automatic cut-off: the spectral rule ([`crate::derivative::auto_cutoff`], largest over
+/// files) proposes the centre of a grid of octaves over a real range ([`cutoff_grid`]), and half
+/// an octave either side of the grid's best is tried too (only the given cut-off with
+/// `--cutoff`); each cut-off with every
 /// [`Smoothing`] (regression filter at 1 or ½ of the cut-off, predictions from the filtered
 /// rows or from the states), and the combination with the smallest held-out error against the
 /// measured torque wins (rigid model plus every candidate effect, leave-one-block-out, the same
@@ -107,23 +110,15 @@ pub fn choose_cutoff(
     let grid: Vec<f64> = match cfg.derivative.cutoff_hz {
         Some(fc) => vec![fc],
         None => {
-            let (mut band, mut cap) = (0.0f64, f64::INFINITY);
-            for p in &first {
-                let fs = p.est.report.fs_hz;
-                cap = cap.min(0.2 * fs);
-                for c in &p.est.report.per_channel {
-                    band = band.max(c.motion_band_hz);
-                    cap = cap.min(1.25 * c.noise_edge_hz.max(c.motion_band_hz));
-                }
-            }
-            if band.is_nan() || band <= 0.0 {
-                Vec::new()
-            } else {
-                (-2..=7)
-                    .map(|k| band * 2f64.powf(k as f64 / 2.0))
-                    .filter(|&f| f <= cap)
-                    .collect()
-            }
+            let fs = first
+                .iter()
+                .map(|p| p.est.report.fs_hz)
+                .fold(f64::INFINITY, f64::min);
+            let proposal = first
+                .iter()
+                .map(|p| p.est.report.cutoff_hz)
+                .fold(0.0, f64::max);
+            cutoff_grid(proposal, fs)
         }
     };
     let Some(&lowest) = grid.first() else {
@@ -155,7 +150,7 @@ pub fn choose_cutoff(
             .map(|t| Prepared::with_cutoff(t.clone(), cfg, Some(fc), sm, Some(edge_fc)))
             .collect::<Result<_, _>>()?;
         let problem = Problem::build(base, layout.clone(), &preps, cfg.blocks);
-        let subset = problem.subset(&all);
+        let subset = problem.independent(&problem.subset(&all));
         let Ok(w) = problem.weights(&subset) else {
             return Ok(());
         };
@@ -178,12 +173,62 @@ pub fn choose_cutoff(
             trial(&mut trials, fc, ratio)?;
         }
     }
+    // Half a step either side of the coarse grid's best.
+    if grid.len() > 1 {
+        if let Some(best) = best_trial(&trials).map(|b| b.cutoff_hz) {
+            let (lo, hi) = (grid[0], grid[grid.len() - 1]);
+            for fc in [best / SQRT_2, best * SQRT_2] {
+                if (lo..=hi).contains(&fc) {
+                    for &ratio in &ratios {
+                        trial(&mut trials, fc, ratio)?;
+                    }
+                }
+            }
+        }
+    }
     let choice = best_trial(&trials).map_or(fallback, |b| FilterChoice {
         cutoff_hz: Some(b.cutoff_hz),
         smoothing: b.smoothing,
     });
     trials.sort_by(|a, b| a.cutoff_hz.total_cmp(&b.cutoff_hz));
     Ok((choice, trials))
+}
+
+/// Lowest derivative cut-off the scan tries (Hz), unless the spectrum proposes less: robot
+/// motion has content up to a few hertz, so lower cut-offs only distort it (the held-out error
+/// says so); a slow arm's spectrum extends the range down.
+pub const SCAN_LOWEST_HZ: f64 = 0.5;
+
+/// Highest derivative cut-off the scan tries, as a share of the sampling rate.
+pub const SCAN_HIGHEST_PER_FS: f64 = 0.2;
+
+/// The coarse grid of the automatic cut-off: the spectral rule's `proposal` times powers of 2,
+/// from [`SCAN_LOWEST_HZ`] (or a quarter of the proposal, if lower) to
+/// [`SCAN_HIGHEST_PER_FS`]` · fs` — a real range whatever the spectrum says, because jittery or
+/// resampled timestamps and a drive's velocity column can put its motion band anywhere (a
+/// 500 Hz log with 20 % timing jitter reads as motion up to 250 Hz). The proposal is clamped
+/// into the range.
+pub fn cutoff_grid(proposal: f64, fs: f64) -> Vec<f64> {
+    let hi = SCAN_HIGHEST_PER_FS * fs;
+    if !(hi.is_finite() && hi > 0.0) {
+        return Vec::new();
+    }
+    let p = if proposal.is_finite() && proposal > 0.0 {
+        proposal.min(hi)
+    } else {
+        hi / 8.0
+    };
+    let lo = SCAN_LOWEST_HZ.min(p / 4.0);
+    let mut f = p;
+    while f / 2.0 >= lo * (1.0 - 1e-9) {
+        f /= 2.0;
+    }
+    let mut grid = Vec::new();
+    while f <= hi * (1.0 + 1e-9) {
+        grid.push(f);
+        f *= 2.0;
+    }
+    grid
 }
 
 /// The trial with the smallest held-out error (the first of equals).
@@ -211,6 +256,27 @@ mod tests {
             ddq: None,
             tau: Some(vec![0.0; len]),
         })
+    }
+
+    #[test]
+    fn the_cutoff_grid_spans_a_real_range_whatever_the_spectrum_proposes() {
+        // A sensible proposal: octaves through it, from 0.5 Hz to 0.2·fs.
+        let g = cutoff_grid(3.0, 500.0);
+        assert_eq!(g, vec![0.75, 1.5, 3.0, 6.0, 12.0, 24.0, 48.0, 96.0]);
+        // Jitter read as motion up to 250 Hz at 500 Hz: the proposal is clamped, the range kept.
+        let g = cutoff_grid(248.6, 500.0);
+        assert_eq!((g[0], *g.last().unwrap(), g.len()), (0.78125, 100.0, 8));
+        // A slow arm's spectrum extends it down; 100 Hz and 2 kHz logs alike.
+        assert_eq!(cutoff_grid(0.8, 100.0)[0], 0.2);
+        assert!(cutoff_grid(0.8, 100.0).last().unwrap() <= &20.0);
+        let g = cutoff_grid(10.0, 2000.0);
+        assert!(
+            g[0] >= 0.5 && g[0] < 1.0 && *g.last().unwrap() <= 400.0 && g.len() == 10,
+            "{g:?}"
+        );
+        // No proposal (flat spectrum): still the range.
+        assert!(cutoff_grid(f64::NAN, 1000.0).len() >= 8);
+        assert!(cutoff_grid(5.0, f64::NAN).is_empty());
     }
 
     #[test]

@@ -6,7 +6,7 @@ use std::path::Path;
 
 use super::ReportError;
 use crate::dh::DhTable;
-use crate::identify::{pooled_validation, Outcome};
+use crate::identify::{pooled_validation, pooled_validation_from_states, Errors, Outcome};
 use crate::io::atomic_write;
 
 /// Writes the study's reports into `dir` (each fold's, then the summary); returns the summary
@@ -21,9 +21,9 @@ pub fn write(
     let _ = writeln!(md, "Reproduce: `{command}`\n");
     let _ = writeln!(
         md,
-        "| held-out file | effects found | cut-off (Hz) | regression filter, prediction | validation before | validation after | consistent |"
+        "| held-out file | effects found | cut-off (Hz) | regression filter, prediction | validation before | validation after | after, from states | consistent |"
     );
-    let _ = writeln!(md, "|---|---|---|---|---|---|---|");
+    let _ = writeln!(md, "|---|---|---|---|---|---|---|---|");
     let mut rows = Vec::new();
     let mut reports = Vec::new();
     for o in outs {
@@ -42,18 +42,25 @@ pub fn write(
             .as_ref()
             .and_then(|c| c.validation.as_ref())
             .map_or(f64::NAN, |e| e.overall);
+        let states = o
+            .after
+            .from_states
+            .as_ref()
+            .map_or(o.after.validation.as_ref(), |s| s.validation.as_ref())
+            .map_or(f64::NAN, |e| e.overall);
         let fc = o.train.first().map_or(f64::NAN, |f| f.derivative.cutoff_hz);
         let sm = o.train.first().map(|f| f.smoothing).unwrap_or_default();
         let _ = writeln!(
             md,
-            "| `{v}` | {} | {fc:.2} | {} | {:.2} % | {:.2} % | {:.2} % |",
+            "| `{v}` | {} | {fc:.2} | {} | {:.2} % | {:.2} % | {:.2} % | {:.2} % |",
             found.join(", "),
             sm.label(),
             100.0 * b,
             100.0 * a,
+            100.0 * states,
             100.0 * c
         );
-        rows.push(serde_json::json!({"heldout": v, "effects_found": found, "cutoff_hz": fc, "smoothing": sm, "validation_before": o.before.validation, "validation_after": o.after.validation, "validation_consistent": o.consistent.as_ref().and_then(|c| c.validation.as_ref()), "least_squares_consistent": o.physical.as_ref().map(|p| p.least_squares_consistent), "steps": o.steps}));
+        rows.push(serde_json::json!({"heldout": v, "effects_found": found, "cutoff_hz": fc, "smoothing": sm, "validation_before": o.before.validation, "validation_after": o.after.validation, "validation_consistent": o.consistent.as_ref().and_then(|c| c.validation.as_ref()), "validation_after_from_states": states, "least_squares_consistent": o.physical.as_ref().map(|p| p.least_squares_consistent), "steps": o.steps}));
         let stem = Path::new(&v)
             .file_name()
             .map(|s| {
@@ -76,7 +83,14 @@ pub fn write(
             );
         }
     }
-    let json = serde_json::json!({"folds": rows, "pooled": pooled.map(|(b, a, c)| serde_json::json!({"before": b, "after": a, "consistent": c})), "command": command});
+    let states = pooled_validation_from_states(outs);
+    if let Some((b, a, c)) = &states {
+        let _ = writeln!(md, "\nThe same, every model's torque predicted from the estimated states (what a controller computing τ from those states would see; the table's prediction column says which one each fold chose): before {:.2} %, after {:.2} %{}.", 100.0 * b.overall, 100.0 * a.overall, c.as_ref().map_or(String::new(), |c| format!(", consistent {:.2} %", 100.0 * c.overall)));
+    }
+    let both = |p: Option<(Errors, Errors, Option<Errors>)>| {
+        p.map(|(b, a, c)| serde_json::json!({"before": b, "after": a, "consistent": c}))
+    };
+    let json = serde_json::json!({"folds": rows, "pooled": both(pooled), "pooled_from_states": both(states), "command": command});
     for (d, o) in &reports {
         super::write(d, o, command, table)?;
     }

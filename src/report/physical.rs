@@ -6,7 +6,7 @@ use std::fmt::Write as _;
 
 use serde_json::{json, Value};
 
-use super::{err_cells, num, pct};
+use super::{num, pct};
 use crate::dh::DhTable;
 use crate::identify::Outcome;
 use crate::params::{Effects, InertialParams};
@@ -76,10 +76,7 @@ pub fn json(o: &Outcome) -> Value {
             "links": p.links,
             "standard_parameters": p.params,
             "effects": p.effects.iter().map(|(t, v)| json!({"joint": t.joint + 1, "effect": t.effect.name(), "value": v})).collect::<Vec<_>>(),
-            "error": o.consistent.as_ref().map(|c| json!({
-                "train": super::errors_json(&c.train),
-                "validation": c.validation.as_ref().map(super::errors_json),
-            })),
+            "error": o.consistent.as_ref().map(super::model_errors_json),
             "regulariser": p.regulariser,
             "newton_steps": p.newton_steps,
         }),
@@ -134,17 +131,12 @@ pub fn section(m: &mut String, o: &Outcome) {
     let (Some(p), Some(c)) = (&o.physical, &o.consistent) else {
         return;
     };
-    let head: Vec<String> = (1..=o.dof).map(|j| format!("joint {j}")).collect();
-    let _ = writeln!(m, "| estimate | data | {} | overall |", head.join(" | "));
-    let _ = writeln!(m, "|---|---|{}---|", "---|".repeat(o.dof));
-    for (label, r) in [("least squares", &o.after.train), ("consistent", &c.train)] {
-        let _ = writeln!(m, "| {label} | training | {} |", err_cells(r));
-    }
-    if let (Some(a), Some(b)) = (&o.after.validation, &c.validation) {
-        for (label, r) in [("least squares", a), ("consistent", b)] {
-            let _ = writeln!(m, "| {label} | validation | {} |", err_cells(r));
-        }
-    }
+    super::model_error_table(
+        m,
+        o.dof,
+        "estimate",
+        &[("least squares", &o.after), ("consistent", c)],
+    );
     let _ = writeln!(
         m,
         "\n| link | mass (kg) | centre of mass (m) | principal moments (kg·m²) | min eig. of pseudo-inertia | relative |"

@@ -16,23 +16,85 @@ fn suite(args: &[&str]) -> (serde_json::Value, serde_json::Value) {
     (read("summary.json"), read("cases.json"))
 }
 
-/// The quick subset (seeds 1–20: ≤ 4 joints, ≤ 500 Hz, 15 s runs). Measured when the group step
-/// went in: recall 0.867 for effects of ≥ 3 % torque share, false positives 0.0041 per absent
-/// candidate, validation within 1.15 × the oracle in 16 of 20 cases (before the group step:
-/// 0.778 / 0.0041 / 15 of 20, worst case 17 × the oracle). The bars are issue 18's for false
-/// positives and a guard just under today's numbers for the rest (issue 18's 0.95 bars are
-/// not met yet: docs/eval.md).
+/// The quick subset (seeds 1–20: ≤ 4 joints, ≤ 500 Hz, 15 s runs), against issue 18's bars.
+/// Measured with the cut-off scan over a real range: recall 1.0 for effects of ≥ 3 % torque
+/// share, no false positive in 295 decisions, validation within 1.15 × the oracle and the
+/// automatic cut-off within 1.1 × the best fixed one in 19 of 20 cases each (before it: 0.867,
+/// 0.0041, 16 and 14 of 20; docs/eval.md). 20 cases are a small sample — one case is 5 % — so
+/// the bars here are the issue's, read with one case of slack where the issue says 95 %.
 #[test]
 fn eval_suite_quick_subset() {
     let (s, _) = suite(&["--cases", "20", "--quick", "--jobs", "2"]);
     let f = |k: &str| s[k].as_f64().unwrap();
     assert_eq!(s["failed"], 0, "{s}");
     assert!(f("false_positive_rate") <= 0.02, "{s}");
-    assert!(f("recall_share_ge_3pct") >= 0.8, "{s}");
+    assert!(f("recall_share_ge_3pct") >= 0.95, "{s}");
     assert!(
-        s["validation_over_oracle"]["within_1.15"].as_f64().unwrap() >= 0.75,
+        s["validation_over_oracle"]["within_1.15"].as_f64().unwrap() >= 0.95,
         "{s}"
     );
+    assert!(
+        s["auto_cutoff_over_best_fixed"]["within_1.1"]
+            .as_f64()
+            .unwrap()
+            >= 0.9,
+        "{s}"
+    );
+}
+
+/// One hand-written case (`eval/patterns/NAME.json`) through the suite: its cases.json entry.
+fn pattern(name: &str) -> serde_json::Value {
+    let file = format!("{}/eval/patterns/{name}.json", env!("CARGO_MANIFEST_DIR"));
+    let (_, cases) = suite(&["--pattern", &file]);
+    cases[0].clone()
+}
+
+fn found(c: &serde_json::Value) -> Vec<String> {
+    let f = c["auto"]["found"].as_array().unwrap();
+    f.iter().map(|v| v.as_str().unwrap().to_string()).collect()
+}
+
+/// The best validation error of the true effect set over the fixed cut-offs (the oracle).
+fn oracle(c: &serde_json::Value) -> f64 {
+    let grid = c["grid"].as_object().unwrap();
+    grid.values()
+        .filter_map(|g| g["validation"].as_f64())
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// Issue 18's missed effects: a 2-DOF arm with rotor inertia on joint 2 (0.1 kg·m²) and offsets
+/// on both joints (0.4, −0.2 N·m), 500 Hz, 17-bit encoders, 1 % torque noise, positions only.
+/// Before the group step (36c98e6) the greedy loop stopped after part of the set; now all three
+/// are found and the validation error is the oracle's.
+#[test]
+fn rotor_inertia_with_offsets_on_both_joints_is_found() {
+    let c = pattern("rotor_and_offsets");
+    assert_eq!(found(&c), ["armature2", "offset1", "offset2"], "{c}");
+    let auto = c["auto"]["validation"].as_f64().unwrap();
+    assert!(
+        auto <= 1.15 * oracle(&c),
+        "validation {auto}, oracle {}",
+        oracle(&c)
+    );
+}
+
+/// Issue 18's wrong cut-off: a ~1 kHz log with jittery, dropped timestamps (resampled) and a
+/// velocity column. The jitter reads as motion up to hundreds of hertz, so the spectral rule's
+/// grid lay above 0.2·fs and the scan tried nothing: the rule's cut-off was used untested
+/// (measured before: validation 3.2 × the oracle's, and `offset3` invented). The scan over a
+/// real range picks a cut-off within 1.1 × the best fixed one.
+#[test]
+fn jittery_log_with_a_velocity_column_gets_a_tested_cutoff() {
+    let c = pattern("jittery_1khz_velocity");
+    assert_eq!(found(&c), ["coulomb2", "viscous1"], "{c}");
+    let best = oracle(&c);
+    let true_auto = c["true_auto"]["validation"].as_f64().unwrap();
+    assert!(
+        true_auto <= 1.1 * best,
+        "automatic cut-off {true_auto}, best fixed {best}"
+    );
+    let auto = c["auto"]["validation"].as_f64().unwrap();
+    assert!(auto <= 1.15 * best, "validation {auto}, oracle {best}");
 }
 
 /// Issue 18's "misses cluster where two or three effects sit on one joint", simulated by MuJoCo
