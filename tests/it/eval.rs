@@ -64,8 +64,9 @@ fn oracle(c: &serde_json::Value) -> f64 {
 
 /// Issue 18's missed effects: a 2-DOF arm with rotor inertia on joint 2 (0.1 kg·m²) and offsets
 /// on both joints (0.4, −0.2 N·m), 500 Hz, 17-bit encoders, 1 % torque noise, positions only.
-/// Before the group step (36c98e6) the greedy loop stopped after part of the set; now all three
-/// are found and the validation error is the oracle's.
+/// Point-to-point moves, shares 2.3 %, 2.7 % and 9 % of the joints' torque. Before the group step
+/// (measured with the parent of 36c98e6) the greedy loop found none of them (validation 1.55 ×
+/// the oracle's); now all three are found and the validation error is the oracle's.
 #[test]
 fn rotor_inertia_with_offsets_on_both_joints_is_found() {
     let c = pattern("rotor_and_offsets");
