@@ -9,7 +9,9 @@
 //! column's change with the angle is below a 0.3 %-noise torque sensor), a prismatic one when it
 //! spans less than [`STILL_M`].
 
+use super::outcome::Undetermined;
 use super::prepare::Prepared;
+use super::problem::Problem;
 use crate::dh::{DhTable, JointKind};
 
 /// Least span of a revolute joint's position over the training data (rad): 0.05 rad ≈ 2.9°.
@@ -50,4 +52,43 @@ pub fn warnings(train: &[Prepared], table: Option<&DhTable>, dof: usize) -> Vec<
         }
     }
     out
+}
+
+/// Least torque, in units of the fit's residual, by which a one-σ change of a parameter must
+/// move the prediction for the data to count as determining it (see [`torque_sigma`]).
+pub const UNDETERMINED_SIGMA: f64 = 1.0;
+
+/// Per parameter of `subset` (its block-jackknife standard deviation `std`), how far a one-σ
+/// change moves the weighted prediction — RMS over every regression row, in units of the
+/// weighted residual's RMS (the weights are `1/σⱼ`, so that is 1): `σₖ·√(Nₖₖ/R)` with
+/// `Nₖₖ = Σⱼ wⱼ²‖Yⱼₖ‖²` and `R` rows. Small when the parameter is pinned down, whatever its
+/// value (a well-determined zero included); above [`UNDETERMINED_SIGMA`] the data leave it free
+/// to trade torque with other parameters by more than the noise — fitted, not measured.
+pub fn torque_sigma(problem: &Problem, subset: &[usize], w: &[f64], std: &[f64]) -> Vec<f64> {
+    let (n, _) = problem.normal_equations(subset, w);
+    let rows = problem.rows().max(1) as f64;
+    (0..subset.len())
+        .map(|k| std[k] * (n[(k, k)] / rows).sqrt())
+        .collect()
+}
+
+/// One warning naming the parameters the data leave free (none: `None`), with what would fix it.
+pub fn undetermined_warning(u: &[Undetermined]) -> Option<String> {
+    if u.is_empty() {
+        return None;
+    }
+    let names: Vec<String> = u
+        .iter()
+        .map(|p| {
+            format!(
+                "`{}` = {:.4e} ± {:.1e} (a one-σ change moves the prediction by {:.1}× the residual)",
+                p.name, p.value, p.std, p.torque_sigma
+            )
+        })
+        .collect();
+    Some(format!(
+        "the training data do not determine {}: {} — the fit trades torque between them and the parameters they are collinear with, so their values are not measurements (the prediction is). Record motion that moves the joints these parameters belong to through larger ranges with varied velocities and accelerations (an optimised excitation: `dynid excite`), or give the values you trust with `--prior` and read the physically consistent estimate.",
+        if u.len() == 1 { "one parameter" } else { "these parameters" },
+        names.join(", ")
+    ))
 }

@@ -66,7 +66,7 @@ pub mod synth;
 pub use evaluate::{raw_sums, Errors, Judged, ModelResult, Prediction, RawSums, StateErrors};
 pub use layout::Layout;
 pub use load_stage::LoadModel;
-pub use outcome::{Estimated, FileInfo, Outcome, StepRow};
+pub use outcome::{Estimated, FileInfo, Outcome, StepRow, Undetermined};
 pub use predict::{BeforeAfter, Predictions, Series};
 pub use prepare::{PrepCache, Prepared, Smoothing};
 pub use problem::Problem;
@@ -273,6 +273,8 @@ pub fn run_prepared(
     let selected = load_stage(base, train, cfg, first)?;
     let mut out = outcome::assemble(arm, base, train, val, cfg, selected, &merged)?;
     out.warnings = identifiability::warnings(train, table, base.dof());
+    out.warnings
+        .extend(identifiability::undetermined_warning(&out.undetermined));
     Ok(out)
 }
 

@@ -120,6 +120,19 @@ pub struct Outcome {
     pub consistent: Option<ModelResult>,
     /// What the training data cannot determine ([`super::identifiability`]).
     pub warnings: Vec<String>,
+    /// Parameters whose one-σ uncertainty moves the prediction by more than the residual
+    /// ([`super::identifiability::torque_sigma`]).
+    pub undetermined: Vec<Undetermined>,
+}
+
+/// A parameter the training data leave free (see [`super::identifiability::torque_sigma`]).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Undetermined {
+    pub name: String,
+    pub value: f64,
+    pub std: f64,
+    /// How far a one-σ change moves the prediction, in units of the fit's residual.
+    pub torque_sigma: f64,
 }
 
 /// Stage 7: the outcome of an identification whose effects are selected (`selected`, the
@@ -159,6 +172,24 @@ pub(super) fn assemble(
     let consistent_x = physical.as_ref().map(|p| p.x.as_slice());
     let (before, after, consistent, steps) = models.judge(base, &problem, train, val, consistent_x);
     let (theta, effects) = estimates(layout, &selection, &after, &last.loo);
+    let std: Vec<f64> = theta
+        .iter()
+        .chain(effects.iter().map(|(_, e)| e))
+        .map(|e| e.std)
+        .collect();
+    let sig = super::identifiability::torque_sigma(&problem, &last.subset, &last.w, &std);
+    let undetermined: Vec<Undetermined> = theta
+        .iter()
+        .chain(effects.iter().map(|(_, e)| e))
+        .zip(&sig)
+        .filter(|(_, &c)| c > super::identifiability::UNDETERMINED_SIGMA)
+        .map(|(e, &c)| Undetermined {
+            name: e.name.clone(),
+            value: e.value,
+            std: e.std,
+            torque_sigma: c,
+        })
+        .collect();
     let series = make_series(base, layout, train, val, &before, &after);
     let predictions = val
         .map(|p| predictions(base, layout, p, &before, &after, consistent.as_ref()))
@@ -200,6 +231,7 @@ pub(super) fn assemble(
         physical_error,
         consistent,
         warnings: Vec::new(),
+        undetermined,
     })
 }
 

@@ -217,6 +217,11 @@ impl Problem {
         (n, b)
     }
 
+    /// Regression rows over all joints (after decimation).
+    pub fn rows(&self) -> usize {
+        self.total.iter().map(|a| a.rows()).sum()
+    }
+
     /// Per-joint weights `1/σⱼ` from the residual of the model (OLS, then one WLS pass).
     pub fn weights(&self, subset: &[usize]) -> Result<Vec<f64>, RankError> {
         let n = self.layout.dof;
