@@ -1,0 +1,222 @@
+//! The batch driver behind every kernel method of `dynid.Arm`: `N` samples in, `N` outputs out,
+//! row-major, no Python in sight (so `examples/batch_throughput.rs` compiles this file on its own
+//! and times the very code the bindings run).
+//!
+//! Generated arms run the lane-batched kernels ([`dynid::pack`]: [`LANES`] samples per call,
+//! each lane bit for bit the scalar kernel's result); the last `N mod LANES` samples go through
+//! the scalar kernel. Arms without generated kernels run the hand-written reference dynamics
+//! ([`dynid::reference`]) sample by sample, the base regressor through the numerical base of
+//! [`BaseModel`]. Work is split into chunks of [`CHUNK`] samples, spread over rayon's threads.
+
+use dynid::identify::base::{BaseModel, Scratch};
+use dynid::model::{Kernel, Model};
+use dynid::pack::{gather, Pack, LANES};
+use dynid::reference::{RefModel, Workspace};
+use rayon::prelude::*;
+
+/// Samples per unit of work (a multiple of [`LANES`]): large enough that a chunk's bookkeeping
+/// is noise, small enough that two threads share a 100-sample batch.
+pub const CHUNK: usize = 64;
+
+/// What evaluates an arm's dynamics.
+pub enum Dynamics {
+    /// Generated, unrolled kernels (`dynid::arms`).
+    Generated(&'static dyn Model),
+    /// The reference recursive Newton–Euler of a D-H table and its numerical base parameters.
+    Reference { model: RefModel, base: BaseModel },
+}
+
+/// The joint-space inputs of one call: `samples × dof` values each, row-major. A kernel reads
+/// only the ones it takes; the others may be empty.
+pub struct States<'a> {
+    pub samples: usize,
+    pub q: &'a [f64],
+    pub dq: &'a [f64],
+    pub ddq: &'a [f64],
+}
+
+impl Dynamics {
+    pub fn dof(&self) -> usize {
+        match self {
+            Dynamics::Generated(m) => m.dof(),
+            Dynamics::Reference { model, .. } => model.dof(),
+        }
+    }
+
+    /// Full inertial parameters, `10 · dof`.
+    pub fn np(&self) -> usize {
+        10 * self.dof()
+    }
+
+    pub fn nb(&self) -> usize {
+        match self {
+            Dynamics::Generated(m) => m.nb(),
+            Dynamics::Reference { base, .. } => base.nb(),
+        }
+    }
+
+    /// Output values per sample of `kernel`.
+    pub fn out_len(&self, kernel: Kernel) -> usize {
+        kernel.out_len(self.dof(), self.np(), self.nb())
+    }
+
+    /// Base parameters `θ = B·p` of full parameters `p`.
+    pub fn base_params(&self, p: &[f64]) -> Vec<f64> {
+        match self {
+            Dynamics::Generated(m) => {
+                let mut out = vec![0.0; m.nb()];
+                m.base_params(p, &mut out);
+                out
+            }
+            Dynamics::Reference { base, .. } => base.base_params(p),
+        }
+    }
+
+    /// Runs `kernel` on every sample of `x` with full parameters `p` (ignored by the
+    /// regressors), writing sample `s`'s output to `out[s·len .. (s+1)·len]`. `threads`: 1 runs
+    /// on the calling thread, 0 on rayon's global pool, `k` on a pool of `k` threads.
+    ///
+    /// Panics if a slice has the wrong length (the bindings check shapes before calling).
+    pub fn run(&self, kernel: Kernel, x: &States, p: &[f64], out: &mut [f64], threads: usize) {
+        let len = self.out_len(kernel);
+        assert_eq!(out.len(), x.samples * len, "output length");
+        if x.samples == 0 || len == 0 {
+            return;
+        }
+        let work = Work::new(self, kernel, p);
+        let body = |(c, o): (usize, &mut [f64])| work.chunk(x, c * CHUNK, o);
+        let chunks = out.chunks_mut(CHUNK * len).enumerate();
+        match threads {
+            1 => chunks.for_each(body),
+            0 => out.par_chunks_mut(CHUNK * len).enumerate().for_each(body),
+            k => match rayon::ThreadPoolBuilder::new().num_threads(k).build() {
+                Ok(pool) => {
+                    pool.install(|| out.par_chunks_mut(CHUNK * len).enumerate().for_each(body))
+                }
+                Err(_) => chunks.for_each(body),
+            },
+        }
+    }
+}
+
+/// One call's constants: the kernel, its parameters (as packs for the lanes).
+struct Work<'a> {
+    dynamics: &'a Dynamics,
+    kernel: Kernel,
+    p: &'a [f64],
+    theta: Vec<f64>,
+    theta_packed: Vec<Pack>,
+}
+
+impl<'a> Work<'a> {
+    fn new(dynamics: &'a Dynamics, kernel: Kernel, p: &'a [f64]) -> Self {
+        let takes_params = !matches!(kernel, Kernel::Regressor | Kernel::BaseRegressor);
+        let theta = match dynamics {
+            Dynamics::Generated(_) if takes_params => dynamics.base_params(p),
+            _ => Vec::new(),
+        };
+        let theta_packed = theta.iter().map(|&t| Pack::splat(t)).collect();
+        Work {
+            dynamics,
+            kernel,
+            p,
+            theta,
+            theta_packed,
+        }
+    }
+
+    /// Samples `s0 .. s0 + out.len() / len`.
+    fn chunk(&self, x: &States, s0: usize, out: &mut [f64]) {
+        match self.dynamics {
+            Dynamics::Generated(m) => self.chunk_generated(*m, x, s0, out),
+            Dynamics::Reference { model, base } => self.chunk_reference(model, base, x, s0, out),
+        }
+    }
+
+    fn chunk_generated(&self, m: &dyn Model, x: &States, s0: usize, out: &mut [f64]) {
+        let n = m.dof();
+        let len = self.dynamics.out_len(self.kernel);
+        let count = out.len() / len;
+        let mut inputs = [
+            vec![Pack::default(); n],
+            vec![Pack::default(); n],
+            vec![Pack::default(); n],
+        ];
+        let mut packed = vec![Pack::default(); len];
+        let whole = count - count % LANES;
+        for g in (0..whole).step_by(LANES) {
+            for (dst, src) in inputs.iter_mut().zip([x.q, x.dq, x.ddq]) {
+                if !src.is_empty() {
+                    let rows: [&[f64]; LANES] = std::array::from_fn(|l| row(src, s0 + g + l, n));
+                    gather(rows, dst);
+                }
+            }
+            let [q, dq, ddq] = &inputs;
+            self.kernel
+                .call_lanes(m, q, dq, ddq, &self.theta_packed, &mut packed);
+            let block = &mut out[g * len..(g + LANES) * len];
+            for (k, p) in packed.iter().enumerate() {
+                for (l, v) in p.to_array().into_iter().enumerate() {
+                    block[l * len + k] = v;
+                }
+            }
+        }
+        for s in whole..count {
+            let (q, dq, ddq) = (
+                row(x.q, s0 + s, n),
+                row(x.dq, s0 + s, n),
+                row(x.ddq, s0 + s, n),
+            );
+            self.kernel
+                .call(m, q, dq, ddq, &self.theta, &mut out[s * len..(s + 1) * len]);
+        }
+    }
+
+    fn chunk_reference(
+        &self,
+        model: &RefModel,
+        base: &BaseModel,
+        x: &States,
+        s0: usize,
+        out: &mut [f64],
+    ) {
+        let n = model.dof();
+        let len = self.dynamics.out_len(self.kernel);
+        let mut ws: Workspace = model.workspace();
+        let mut scratch: Scratch = base.scratch();
+        let p = self.p;
+        for (s, o) in out.chunks_mut(len).enumerate() {
+            let (q, dq, ddq) = (
+                row(x.q, s0 + s, n),
+                row(x.dq, s0 + s, n),
+                row(x.ddq, s0 + s, n),
+            );
+            match self.kernel {
+                Kernel::Regressor => model.regressor(&mut ws, q, dq, ddq, o),
+                Kernel::BaseRegressor => base.eval(&mut scratch, q, dq, ddq, o),
+                Kernel::MassMatrix => model.mass_matrix(&mut ws, q, p, o),
+                Kernel::Bias => model.bias(&mut ws, q, dq, p, o),
+                Kernel::Gravity => model.gravity(&mut ws, q, p, o),
+                Kernel::InverseDynamics => model.inverse_dynamics(&mut ws, q, dq, ddq, p, o),
+            }
+        }
+    }
+}
+
+/// Sample `s` of a `samples × n` block (an empty block stays empty: an input the kernel ignores).
+fn row(v: &[f64], s: usize, n: usize) -> &[f64] {
+    if v.is_empty() {
+        v
+    } else {
+        &v[s * n..(s + 1) * n]
+    }
+}
+
+/// Which of `(q, dq, ddq)` `kernel` reads.
+pub fn takes(kernel: Kernel) -> [bool; 3] {
+    match kernel {
+        Kernel::Regressor | Kernel::BaseRegressor | Kernel::InverseDynamics => [true; 3],
+        Kernel::MassMatrix | Kernel::Gravity => [true, false, false],
+        Kernel::Bias => [true, true, false],
+    }
+}
