@@ -456,6 +456,19 @@ impl Arm {
         )
     }
 
+    /// The arm as a URDF (links = the D-H frames, as ``dynid export-urdf``), with the full
+    /// parameters ``params`` as the links' inertials (massless links without them): how to hand
+    /// Pinocchio or MuJoCo the same arm.
+    #[pyo3(signature = (params=None))]
+    fn to_urdf(&self, params: Option<&Bound<'_, PyAny>>) -> PyResult<String> {
+        let p = params.map(|p| input::params(p, self.n())).transpose()?;
+        let inertial = p.map(|p| {
+            dynid::params::InertialParams::from_full_vector(p.values(), Default::default())
+        });
+        dynid::urdf::export(&self.inner.table, inertial.as_ref())
+            .map_err(|e| DynidError::new_err(e.to_string()))
+    }
+
     /// The kernel kinds, in the generator's order.
     #[staticmethod]
     fn kernels() -> Vec<&'static str> {

@@ -41,9 +41,10 @@ impl<'py> Input<'py> {
                 )));
             }
         };
-        let copy = match array.as_slice() {
-            Ok(_) => None,
-            Err(_) => Some(array.as_array().iter().copied().collect()),
+        // `as_slice` also accepts Fortran order (numpy's "contiguous"): only C order is borrowed.
+        let copy = match array.is_c_contiguous() {
+            true => None,
+            false => Some(array.as_array().iter().copied().collect()),
         };
         Ok(Input { name, array, copy })
     }

@@ -92,9 +92,14 @@ fn source<'a>(d: &'a DataArg<'_>) -> PyResult<ident::Source<'a>> {
     Ok(match d {
         DataArg::Path(p) => ident::Source::Path(p.clone()),
         DataArg::Table(label, names, a) => {
-            let values = a.as_slice().map_err(|_| {
-                PyValueError::new_err(format!("{label}: the array must be C-contiguous"))
-            })?;
+            let values = match a.is_c_contiguous() {
+                true => a.as_slice().unwrap_or(&[]),
+                false => {
+                    return Err(PyValueError::new_err(format!(
+                        "{label}: the array must be C-contiguous (numpy.ascontiguousarray)"
+                    )))
+                }
+            };
             if a.shape()[1] != names.len() {
                 return Err(PyValueError::new_err(format!(
                     "{label}: {} column names for {} columns",
