@@ -1,0 +1,84 @@
+"""dynid.identify on arrays and DataFrames gives the CLI's result on the same files (report.json compared number by
+number), and its errors are the CLI's messages."""
+
+from __future__ import annotations
+
+import json
+import math
+import pickle
+import subprocess
+
+import numpy as np
+import pandas as pd
+import pytest
+from conftest import REPO
+
+import dynid
+
+SET = REPO / "data" / "sim" / "planar2_paper_friction"
+# Keys whose values name the inputs (file paths vs. "data (DataFrame)") or the command line, not results.
+NAMES = {"command", "file", "source"}
+
+
+def same(a, b, path="report"):
+    """Every number of the CLI's report.json equals the Python result's, exactly: the same code runs on the same
+    f64 values (the CSV text the CLI reads parses to the values pandas reads with round_trip precision)."""
+    if isinstance(a, dict):
+        assert isinstance(b, dict) and a.keys() == b.keys(), f"{path}: keys differ"
+        for k in a:
+            if k not in NAMES:
+                same(a[k], b[k], f"{path}.{k}")
+    elif isinstance(a, list):
+        assert isinstance(b, list) and len(a) == len(b), f"{path}: lengths differ"
+        for i, (x, y) in enumerate(zip(a, b)):
+            same(x, y, f"{path}[{i}]")
+    elif isinstance(a, float) and math.isnan(a):
+        assert isinstance(b, float) and math.isnan(b), f"{path}: {a} vs {b}"
+    else:
+        assert a == b, f"{path}: CLI {a!r} vs Python {b!r}"
+
+
+@pytest.fixture(scope="module")
+def cli_report(dynid_cli, tmp_path_factory):
+    out = tmp_path_factory.mktemp("cli")
+    cmd = [dynid_cli, "identify", "--arm", str(SET / "arm.toml"), "--data", str(SET / "excite_noisy.csv.gz")]
+    subprocess.run(cmd + ["--validate", str(SET / "validate_noisy.csv.gz"), "--out", str(out)], check=True)
+    return json.loads((out / "report.json").read_text())
+
+
+def test_identify_on_a_dataframe_and_an_array_equals_the_cli_on_the_files(cli_report, tmp_path):
+    train = pd.read_csv(SET / "excite_noisy.csv.gz", float_precision="round_trip")
+    train = train[["tau2", "q2", "t", "tau1", "q1"]]  # any column order, as in a CSV
+    val = pd.read_csv(SET / "validate_noisy.csv.gz", float_precision="round_trip")
+    val_array = val[["t", "q1", "q2", "tau1", "tau2"]].to_numpy()  # a bare array: t, q, tau in this order
+    result = dynid.identify(dynid.Arm.from_dh(SET / "arm.toml"), train, validate=val_array, out=tmp_path / "py")
+    same(cli_report, result.report)
+    same(cli_report, json.loads((tmp_path / "py" / "report.json").read_text()))
+    assert [e["name"] for e in result.effects_found] == [
+        f"{e['effect']}{e['joint']}" for e in cli_report["effects_found"]
+    ]
+    assert {"viscous1", "coulomb1"} <= {e["name"] for e in result.effects_found}  # the set's truth
+    assert all("rel_std_percent" in p for p in result.parameters)
+    assert result.errors["after"]["validation"]["overall"] < result.errors["before"]["validation"]["overall"]
+    assert result.report_dir == tmp_path / "py" and (tmp_path / "py" / "report.md").is_file()
+    back = pickle.loads(pickle.dumps(result))
+    assert back == result and "effects found" in repr(result)
+
+
+def test_identify_on_paths_equals_the_cli(cli_report):
+    result = dynid.identify(str(SET / "arm.toml"), SET / "excite_noisy.csv.gz", SET / "validate_noisy.csv.gz")
+    same(cli_report, result.report)
+    assert result.report_dir is None and result.files == []
+
+
+def test_bad_data_is_a_dynid_error_with_the_row_and_column():
+    train = pd.read_csv(SET / "excite_noisy.csv.gz").iloc[:500].copy()
+    train.loc[7, "q2"] = np.nan
+    with pytest.raises(dynid.DynidError, match=r"data \(DataFrame\):9: q2: .*NaN"):
+        dynid.identify("planar2", train)
+    with pytest.raises(dynid.DynidError, match=r"unknown column `tau_1`"):
+        dynid.identify("planar2", train.rename(columns={"tau1": "tau_1"}))
+    with pytest.raises(ValueError, match="a 4-column array for a 2-joint arm"):
+        dynid.identify("planar2", np.zeros((100, 4)))
+    with pytest.raises(dynid.DynidError, match="effects: "):
+        dynid.identify("planar2", SET / "excite_noisy.csv.gz", effects="viscus")
