@@ -1,13 +1,18 @@
 //! The Rust side of `python/bench.py`: the batch driver the bindings call (`src/batch.rs`,
-//! compiled here on its own, without Python), timed on the same job as the Python call —
-//! `N` samples of one kernel into a freshly allocated `N × len` output, as `Arm.<kernel>(Q, DQ,
-//! DDQ)` does (numpy's zeroed array; here `vec![0.0; ..]`, the same calloc'd pages).
+//! compiled here on its own, without Python), timed on the jobs the Python calls do.
+//!
+//! Modes:
+//! - `fresh`: `N` samples into a newly allocated `N × len` output each time (`vec![0.0; ..]`,
+//!   calloc'd pages, first touched by the kernels), as `Arm.<kernel>(Q, DQ, DDQ)` does;
+//! - `reuse`: into one preallocated, already touched output, as `Arm.<kernel>(..., out=Y)` does;
+//! - `kernel`: the lane-batched kernels alone: the `N` samples in chunks whose output stays in
+//!   the cache (`dynid bench`'s lanes column, with the gather and scatter of the driver).
 //!
 //! ```sh
-//! cargo run --release -p dynid-python --example batch_throughput -- puma560 base_regressor 100000 7 1
+//! cargo run --release -p dynid-python --example batch_throughput -- puma560 base_regressor 100000 7 1 fresh
 //! ```
-//! Arguments: arm, kernel, samples, repetitions, threads (1 = this thread, 0 = all cores). Prints
-//! one JSON object: the median and every repetition in ns per sample (one warm-up first).
+//! Arguments: arm, kernel, samples, repetitions, threads (1 = this thread, 0 = all cores), mode.
+//! Prints one JSON object: the median and every repetition in ns per sample (one warm-up first).
 
 #[path = "../src/batch.rs"]
 #[allow(dead_code)]
@@ -25,6 +30,11 @@ fn main() {
     let samples: usize = get(2, "100000").parse().expect("samples: a whole number");
     let reps: usize = get(3, "7").parse().expect("repetitions: a whole number");
     let threads: usize = get(4, "1").parse().expect("threads: a whole number");
+    let mode = get(5, "fresh");
+    if !["fresh", "reuse", "kernel"].contains(&mode.as_str()) {
+        eprintln!("error: mode `{mode}` — use fresh, reuse or kernel");
+        std::process::exit(2);
+    }
     let Some(arm) = dynid::arms::find(&arm_name) else {
         eprintln!(
             "error: unknown arm `{arm_name}` — known: {}",
@@ -60,12 +70,35 @@ fn main() {
     let len = d.out_len(kernel);
     let mut ns = Vec::with_capacity(reps);
     let mut checksum = 0.0;
+    let mut kept = vec![0.0; samples * len];
+    let mut chunk = vec![0.0; batch::CHUNK * len];
     for rep in 0..=reps {
         let t0 = Instant::now();
-        let mut out = vec![0.0; samples * len];
-        d.run(kernel, &x, &p, &mut out, threads);
+        match mode.as_str() {
+            "fresh" => {
+                let mut out = vec![0.0; samples * len];
+                d.run(kernel, &x, &p, &mut out, threads);
+                checksum += std::hint::black_box(&out)[samples * len / 2];
+            }
+            "reuse" => {
+                d.run(kernel, &x, &p, &mut kept, threads);
+                checksum += std::hint::black_box(&kept)[samples * len / 2];
+            }
+            _ => {
+                for s0 in (0..samples).step_by(batch::CHUNK) {
+                    let m = batch::CHUNK.min(samples - s0);
+                    let part = batch::States {
+                        samples: m,
+                        q: &q[s0 * n..(s0 + m) * n],
+                        dq: &dq[s0 * n..(s0 + m) * n],
+                        ddq: &ddq[s0 * n..(s0 + m) * n],
+                    };
+                    d.run(kernel, &part, &p, &mut chunk[..m * len], 1);
+                    checksum += std::hint::black_box(&chunk)[0];
+                }
+            }
+        }
         let dt = t0.elapsed().as_secs_f64();
-        checksum += std::hint::black_box(&out)[samples * len / 2];
         if rep > 0 {
             ns.push(dt * 1e9 / samples as f64);
         }
@@ -75,7 +108,7 @@ fn main() {
     let median = sorted[sorted.len() / 2];
     let runs: Vec<String> = ns.iter().map(|v| format!("{v:.3}")).collect();
     println!(
-        "{{\"arm\": \"{arm_name}\", \"kernel\": \"{kernel_name}\", \"samples\": {samples}, \"threads\": {threads}, \"median_ns_per_sample\": {median:.3}, \"runs_ns_per_sample\": [{}], \"checksum\": {checksum:e}}}",
+        "{{\"arm\": \"{arm_name}\", \"kernel\": \"{kernel_name}\", \"mode\": \"{mode}\", \"samples\": {samples}, \"threads\": {threads}, \"median_ns_per_sample\": {median:.3}, \"runs_ns_per_sample\": [{}], \"checksum\": {checksum:e}}}",
         runs.join(", ")
     );
 }

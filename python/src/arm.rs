@@ -12,6 +12,7 @@ use dynid::reference::RefModel;
 use numpy::ndarray::IxDyn;
 use numpy::prelude::*;
 use numpy::PyArrayDyn;
+use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyTuple;
 
@@ -53,7 +54,9 @@ pub struct Inner {
 ///
 /// Every kernel takes float64 arrays of shape ``(n,)`` (one sample) or ``(N, n)`` (``N`` samples,
 /// any memory layout) and returns ``(n, ...)`` or ``(N, n, ...)``. Batches run without the GIL
-/// on the lane-batched kernels, over all cores (``threads=`` to choose: 1 = the calling thread).
+/// on the lane-batched kernels, over all cores (``threads=`` to choose: 1 = the calling thread);
+/// ``out=`` writes into a preallocated C-contiguous float64 array of the output's shape instead of
+/// a new one (a repeated large batch then skips the allocation and first-touch of its memory).
 #[pyclass(module = "dynid", name = "Arm", frozen)]
 pub struct Arm {
     pub inner: Arc<Inner>,
@@ -119,6 +122,7 @@ impl Arm {
         states: [Option<&Bound<'py, PyAny>>; 3],
         params: Option<&Bound<'py, PyAny>>,
         threads: Option<usize>,
+        out: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
         let n = self.n();
         let d = &self.inner.dynamics;
@@ -142,9 +146,31 @@ impl Arm {
         if let Some(b) = batch {
             dims.insert(0, b);
         }
-        let out = PyArrayDyn::<f64>::zeros(py, IxDyn(&dims), false);
+        let out = match out {
+            None => PyArrayDyn::<f64>::zeros(py, IxDyn(&dims), false),
+            Some(o) => {
+                let wrong = || {
+                    let shape: Vec<String> = dims.iter().map(usize::to_string).collect();
+                    PyValueError::new_err(format!(
+                        "out: expected a C-contiguous, writeable float64 array of shape ({}{}) that is not one of the inputs",
+                        shape.join(", "),
+                        if dims.len() == 1 { "," } else { "" }
+                    ))
+                };
+                let a = o.cast::<PyArrayDyn<f64>>().map_err(|_| wrong())?;
+                if a.shape() != dims.as_slice() || !a.is_c_contiguous() {
+                    return Err(wrong());
+                }
+                a.clone()
+            }
+        };
         {
-            let mut rw = out.readwrite();
+            // Fails if `out` is also an input (borrowed read-only above) or not writeable.
+            let mut rw = out.try_readwrite().map_err(|_| {
+                PyValueError::new_err(
+                    "out: not writeable, or also one of the inputs — pass a separate array",
+                )
+            })?;
             let o = rw.as_slice_mut()?;
             let take = takes(kernel);
             let mut it = inputs.iter();
@@ -343,13 +369,14 @@ impl Arm {
     }
 
     /// Full regressor ``Y`` (``(n, 10·n)`` or ``(N, n, 10·n)``): ``tau = Y @ params``.
-    #[pyo3(signature = (q, dq, ddq, *, threads=None))]
+    #[pyo3(signature = (q, dq, ddq, *, threads=None, out=None))]
     fn regressor<'py>(
         &self,
         q: &Bound<'py, PyAny>,
         dq: &Bound<'py, PyAny>,
         ddq: &Bound<'py, PyAny>,
         threads: Option<usize>,
+        out: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
         let py = q.py();
         self.kernel(
@@ -358,17 +385,19 @@ impl Arm {
             [Some(q), Some(dq), Some(ddq)],
             None,
             threads,
+            out,
         )
     }
 
     /// Base regressor ``Yb`` (``(n, nb)`` or ``(N, n, nb)``): ``tau = Yb @ base_params(params)``.
-    #[pyo3(signature = (q, dq, ddq, *, threads=None))]
+    #[pyo3(signature = (q, dq, ddq, *, threads=None, out=None))]
     fn base_regressor<'py>(
         &self,
         q: &Bound<'py, PyAny>,
         dq: &Bound<'py, PyAny>,
         ddq: &Bound<'py, PyAny>,
         threads: Option<usize>,
+        out: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
         let py = q.py();
         self.kernel(
@@ -377,17 +406,19 @@ impl Arm {
             [Some(q), Some(dq), Some(ddq)],
             None,
             threads,
+            out,
         )
     }
 
     /// Joint-space mass matrix ``M(q)`` (``(n, n)`` or ``(N, n, n)``) for full parameters
     /// ``params``.
-    #[pyo3(signature = (q, params, *, threads=None))]
+    #[pyo3(signature = (q, params, *, threads=None, out=None))]
     fn mass_matrix<'py>(
         &self,
         q: &Bound<'py, PyAny>,
         params: &Bound<'py, PyAny>,
         threads: Option<usize>,
+        out: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
         let py = q.py();
         self.kernel(
@@ -396,17 +427,19 @@ impl Arm {
             [Some(q), None, None],
             Some(params),
             threads,
+            out,
         )
     }
 
     /// Coriolis, centrifugal and gravity torques ``h(q, dq)`` (``(n,)`` or ``(N, n)``).
-    #[pyo3(signature = (q, dq, params, *, threads=None))]
+    #[pyo3(signature = (q, dq, params, *, threads=None, out=None))]
     fn bias<'py>(
         &self,
         q: &Bound<'py, PyAny>,
         dq: &Bound<'py, PyAny>,
         params: &Bound<'py, PyAny>,
         threads: Option<usize>,
+        out: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
         let py = q.py();
         self.kernel(
@@ -415,16 +448,18 @@ impl Arm {
             [Some(q), Some(dq), None],
             Some(params),
             threads,
+            out,
         )
     }
 
     /// Gravity torques ``g(q)`` (``(n,)`` or ``(N, n)``).
-    #[pyo3(signature = (q, params, *, threads=None))]
+    #[pyo3(signature = (q, params, *, threads=None, out=None))]
     fn gravity<'py>(
         &self,
         q: &Bound<'py, PyAny>,
         params: &Bound<'py, PyAny>,
         threads: Option<usize>,
+        out: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
         let py = q.py();
         self.kernel(
@@ -433,11 +468,12 @@ impl Arm {
             [Some(q), None, None],
             Some(params),
             threads,
+            out,
         )
     }
 
     /// Inverse dynamics ``tau = M(q) ddq + h(q, dq)`` (``(n,)`` or ``(N, n)``).
-    #[pyo3(signature = (q, dq, ddq, params, *, threads=None))]
+    #[pyo3(signature = (q, dq, ddq, params, *, threads=None, out=None))]
     fn inverse_dynamics<'py>(
         &self,
         q: &Bound<'py, PyAny>,
@@ -445,6 +481,7 @@ impl Arm {
         ddq: &Bound<'py, PyAny>,
         params: &Bound<'py, PyAny>,
         threads: Option<usize>,
+        out: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
         let py = q.py();
         self.kernel(
@@ -453,6 +490,7 @@ impl Arm {
             [Some(q), Some(dq), Some(ddq)],
             Some(params),
             threads,
+            out,
         )
     }
 

@@ -114,3 +114,17 @@ def test_names_and_expressions_are_attributes(puma):
     assert "M2" in planar.base_param_exprs[0]
     assert puma.param_names[:10] == ["XX1", "XY1", "XZ1", "YY1", "YZ1", "ZZ1", "MX1", "MY1", "MZ1", "M1"]
     assert puma.base_map.shape == (puma.nb, puma.np) and dynid.Arm.kernels()[1] == "base_regressor"
+
+
+def test_out_writes_into_a_preallocated_array_and_is_checked(puma):
+    rng = np.random.default_rng(11)
+    q, dq, ddq = random_states(puma, 9, rng)
+    want = puma.base_regressor(q, dq, ddq)
+    y = np.full((9, 6, puma.nb), np.nan)
+    assert puma.base_regressor(q, dq, ddq, out=y) is y and np.array_equal(y, want)
+    with pytest.raises(ValueError, match=r"out: expected a C-contiguous, writeable float64 array of shape \(9, 6, 36\)"):
+        puma.base_regressor(q, dq, ddq, out=np.zeros((9, 6, 35)))
+    with pytest.raises(ValueError, match="out: expected"):
+        puma.base_regressor(q, dq, ddq, out=np.zeros((9, 6, puma.nb), dtype=np.float32))
+    with pytest.raises(ValueError, match="also one of the inputs"):
+        puma.gravity(q, np.zeros(60), out=q)
