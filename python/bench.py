@@ -27,9 +27,8 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
-
 import dynid
+import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -141,9 +140,7 @@ def main() -> int:
                 "rust_runs": rs[(label, mode)],
             }
         )
-        print(
-            f"{label:>14} {mode:>7} {p:8.1f} {r:8.1f} {r / p:11.2f}x {kernel_ns / p:20.2f}x {pin_ns / p:21.1f}x"
-        )
+        print(f"{label:>14} {mode:>7} {p:8.1f} {r:8.1f} {r / p:11.2f}x {kernel_ns / p:20.2f}x {pin_ns / p:21.1f}x")
     if args.json:
         Path(args.json).parent.mkdir(parents=True, exist_ok=True)
         Path(args.json).write_text(json.dumps(result, indent=1))

@@ -3,7 +3,8 @@
 # makes (first run) or reuses the project-local virtual environment .venv/ with every pinned test
 # dependency (scripts/venv.sh), then runs every Rust test (`cargo test`: the library, the CLI,
 # the macro's compile-fail tests, the Pinocchio comparison of the URDF import) and every Python
-# test (pytest). A missing tool is a failure that says how to fix it, never a skip.
+# test (pytest), the Python bindings' after building them into .venv/ (maturin). A missing tool is a
+# failure that says how to fix it, never a skip.
 #
 #   scripts/test.sh                 # everything
 #   scripts/test.sh -- NAME         # extra arguments go to `cargo test` (e.g. a test filter)
@@ -20,3 +21,8 @@ echo "=== cargo test ===" >&2
 cargo test "$@"
 echo "=== pytest ===" >&2
 python -m pytest -q codegen
+# The Python bindings (python/, issue 20): built into .venv/ by maturin (release: the kernels are the point),
+# then their tests; the CLI they compare against is the one `cargo test` just built.
+echo "=== maturin develop (python/) + pytest python/tests ===" >&2
+maturin develop --release --quiet -m python/Cargo.toml
+DYNID_CLI="$ROOT/target/debug/dynid" python -m pytest -q python/tests

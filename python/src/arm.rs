@@ -146,6 +146,7 @@ impl Arm {
         if let Some(b) = batch {
             dims.insert(0, b);
         }
+        let out_is_new = out.is_none();
         let out = match out {
             None => PyArrayDyn::<f64>::zeros(py, IxDyn(&dims), false),
             Some(o) => {
@@ -191,8 +192,8 @@ impl Arm {
             let pv = p.as_ref().map(Input::values).unwrap_or(&[]);
             match batch {
                 // One sample: on this thread, GIL held (a hand-off would cost more than the kernel).
-                None => d.run(kernel, &x, pv, o, 1),
-                Some(_) => py.detach(|| d.run(kernel, &x, pv, o, threads.unwrap_or(0))),
+                None => d.run(kernel, &x, pv, o, 1, out_is_new),
+                Some(_) => py.detach(|| d.run(kernel, &x, pv, o, threads.unwrap_or(0), out_is_new)),
             }
         }
         Ok(out)

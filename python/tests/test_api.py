@@ -5,12 +5,11 @@ from __future__ import annotations
 import pickle
 from pathlib import Path
 
+import dynid
 import numpy as np
 import pinocchio as pin
 import pytest
 from conftest import REPO, pin_q, plausible_params, random_states, rel_err
-
-import dynid
 
 
 @pytest.fixture(scope="module")
@@ -122,9 +121,36 @@ def test_out_writes_into_a_preallocated_array_and_is_checked(puma):
     want = puma.base_regressor(q, dq, ddq)
     y = np.full((9, 6, puma.nb), np.nan)
     assert puma.base_regressor(q, dq, ddq, out=y) is y and np.array_equal(y, want)
-    with pytest.raises(ValueError, match=r"out: expected a C-contiguous, writeable float64 array of shape \(9, 6, 36\)"):
+    with pytest.raises(
+        ValueError, match=r"out: expected a C-contiguous, writeable float64 array of shape \(9, 6, 36\)"
+    ):
         puma.base_regressor(q, dq, ddq, out=np.zeros((9, 6, 35)))
     with pytest.raises(ValueError, match="out: expected"):
         puma.base_regressor(q, dq, ddq, out=np.zeros((9, 6, puma.nb), dtype=np.float32))
     with pytest.raises(ValueError, match="also one of the inputs"):
         puma.gravity(q, np.zeros(60), out=q)
+
+
+def test_the_stubs_name_what_the_module_has():
+    import ast
+
+    stub = ast.parse((Path(dynid.__file__).parent / "__init__.pyi").read_text())
+    top = {n.name for n in stub.body if isinstance(n, (ast.FunctionDef, ast.ClassDef))}
+    assert top - {"_Array"} <= set(dir(dynid)), top - set(dir(dynid))
+    assert set(dynid.__all__) - {"__version__"} <= top
+    arm = next(n for n in stub.body if isinstance(n, ast.ClassDef) and n.name == "Arm")
+    methods = {n.name for n in arm.body if isinstance(n, ast.FunctionDef)} - {"__init__"}
+    assert methods <= set(dir(dynid.Arm)), methods - set(dir(dynid.Arm))
+    assert {k for k in dir(dynid.Arm) if not k.startswith("_")} <= methods
+
+
+def test_a_large_reused_output_written_with_streaming_stores_holds_the_same_numbers(puma):
+    """Past 8 MB a reused out= is written with non-temporal stores (src/batch.rs): same values, every sample."""
+    rng = np.random.default_rng(12)
+    q, dq, ddq = random_states(puma, 5001, rng)  # 5001 · 6 · 36 · 8 bytes = 8.6 MB, and a scalar tail
+    want = puma.base_regressor(q, dq, ddq)
+    y = np.full_like(want, np.nan)
+    for threads in (1, None):
+        y[:] = np.nan
+        puma.base_regressor(q, dq, ddq, out=y, threads=threads)
+        assert np.array_equal(y, want)

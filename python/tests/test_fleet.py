@@ -8,10 +8,9 @@ import json
 import subprocess
 import sys
 
+import dynid
 import pandas as pd
 from conftest import REPO
-
-import dynid
 
 sys.path.insert(0, str(REPO / "examples"))
 import fleet_dask  # noqa: E402

@@ -8,12 +8,11 @@ import math
 import pickle
 import subprocess
 
+import dynid
 import numpy as np
 import pandas as pd
 import pytest
 from conftest import REPO
-
-import dynid
 
 SET = REPO / "data" / "sim" / "planar2_paper_friction"
 # Keys whose values name the inputs (file paths vs. "data (DataFrame)") or the command line, not results.

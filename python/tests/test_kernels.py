@@ -7,12 +7,11 @@ by O(1)."""
 
 from __future__ import annotations
 
+import dynid
 import numpy as np
 import pinocchio as pin
 import pytest
 from conftest import pin_columns, pin_q, plausible_params, random_states, rel_err
-
-import dynid
 
 TOL = 1e-9
 SAMPLES = 40
