@@ -22,10 +22,9 @@ import sys
 from pathlib import Path
 from typing import Any
 
+import dynid
 import numpy as np
 import pandas as pd
-
-import dynid
 
 
 def identify_robot(robot: str, arm: dynid.Arm, data: list[str], validate: str | None) -> dynid.IdentifyResult:

@@ -10,7 +10,7 @@ in one call, against
 All measured in this one run, interleaved (Python, Rust, Python, Rust, ...), medians over the rounds, single-threaded
 (``threads=1``) and on all cores (the default).
 
-    .venv/bin/python python/bench.py            # after scripts/test.sh (or maturin develop --release)
+    .venv/bin/python python/bench.py            # after scripts/test.sh (or maturin develop --profile python)
     .venv/bin/python python/bench.py --json out/bench_python.json
 
 Not a timed test: numbers depend on the machine and its load; the README quotes one run.
@@ -35,7 +35,8 @@ REPO = Path(__file__).resolve().parents[1]
 
 def rust_example() -> Path:
     """Builds (if needed) and returns the Rust side's binary."""
-    cmd = ["cargo", "build", "--release", "-p", "dynid-python", "--example", "batch_throughput"]
+    # The profile the extension is built with (scripts/test.sh), so both sides run the same machine code.
+    cmd = ["cargo", "build", "--profile", "python", "-p", "dynid-python", "--example", "batch_throughput"]
     cmd += ["--message-format=json"]
     proc = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True)
     if proc.returncode != 0:

@@ -21,8 +21,8 @@ echo "=== cargo test ===" >&2
 cargo test "$@"
 echo "=== pytest ===" >&2
 python -m pytest -q codegen
-# The Python bindings (python/, issue 20): built into .venv/ by maturin (release: the kernels are the point),
+# The Python bindings (python/, issue 20): built into .venv/ by maturin (profile `python`: release without LTO),
 # then their tests; the CLI they compare against is the one `cargo test` just built.
 echo "=== maturin develop (python/) + pytest python/tests ===" >&2
-maturin develop --release --quiet -m python/Cargo.toml
+maturin develop --profile python --quiet -m python/Cargo.toml
 DYNID_CLI="$ROOT/target/debug/dynid" python -m pytest -q python/tests

@@ -9,7 +9,7 @@
 //!   the cache (`dynid bench`'s lanes column, with the gather and scatter of the driver).
 //!
 //! ```sh
-//! cargo run --release -p dynid-python --example batch_throughput -- puma560 base_regressor 100000 7 1 fresh
+//! cargo run --profile python -p dynid-python --example batch_throughput -- puma560 base_regressor 100000 7 1 fresh
 //! ```
 //! Arguments: arm, kernel, samples, repetitions, threads (1 = this thread, 0 = all cores), mode.
 //! Prints one JSON object: the median and every repetition in ns per sample (one warm-up first).

@@ -171,20 +171,7 @@ impl<'a> Work<'a> {
             let [q, dq, ddq] = &inputs;
             self.kernel
                 .call_lanes(m, q, dq, ddq, &self.theta_packed, &mut packed);
-            let block = &mut out[g * len..(g + LANES) * len];
-            if self.stream {
-                for (k, p) in packed.iter().enumerate() {
-                    for (l, v) in p.to_array().into_iter().enumerate() {
-                        store_streaming(&mut block[l * len + k], v);
-                    }
-                }
-            } else {
-                for (k, p) in packed.iter().enumerate() {
-                    for (l, v) in p.to_array().into_iter().enumerate() {
-                        block[l * len + k] = v;
-                    }
-                }
-            }
+            scatter(&packed, &mut out[g * len..(g + LANES) * len], self.stream);
         }
         if self.stream {
             store_fence();
@@ -237,6 +224,62 @@ impl<'a> Work<'a> {
 /// not the kernels, sets the pace; measured on the 2-core VM: 350–470 → 190–245 ns per sample
 /// into a reused output).
 pub const STREAM_BYTES: usize = 8 << 20;
+
+/// Writes the [`LANES`] samples held by `packed` (pack `k`: output value `k` of each sample) as
+/// `LANES` consecutive rows of `block`. Four packs at a time are transposed, so each row gets
+/// four consecutive values per store rather than one (the scatter, not the kernel, was most of
+/// a chunk's time with one store per value); `stream`: non-temporal stores (16-byte pairs when
+/// the rows allow, else value by value).
+#[inline]
+fn scatter(packed: &[Pack], block: &mut [f64], stream: bool) {
+    let len = packed.len();
+    let quads = len - len % 4;
+    let pairs_aligned = len % 2 == 0 && (block.as_ptr() as usize) % 16 == 0;
+    for k in (0..quads).step_by(4) {
+        let a: [[f64; 4]; 4] = std::array::from_fn(|i| packed[k + i].to_array());
+        for l in 0..LANES {
+            let v = [a[0][l], a[1][l], a[2][l], a[3][l]];
+            let dst = &mut block[l * len + k..l * len + k + 4];
+            if !stream {
+                dst.copy_from_slice(&v);
+            } else if pairs_aligned {
+                let (lo, hi) = dst.split_at_mut(2);
+                store_streaming_pair(lo, [v[0], v[1]]);
+                store_streaming_pair(hi, [v[2], v[3]]);
+            } else {
+                for (d, x) in dst.iter_mut().zip(v) {
+                    store_streaming(d, x);
+                }
+            }
+        }
+    }
+    for (k, p) in packed.iter().enumerate().skip(quads) {
+        for (l, v) in p.to_array().into_iter().enumerate() {
+            if stream {
+                store_streaming(&mut block[l * len + k], v);
+            } else {
+                block[l * len + k] = v;
+            }
+        }
+    }
+}
+
+/// `dst = v` (two values at a 16-byte aligned address), bypassing the caches where the CPU can
+/// (x86-64: `movntpd`); [`store_fence`] after.
+#[inline(always)]
+fn store_streaming_pair(dst: &mut [f64], v: [f64; 2]) {
+    debug_assert!(dst.len() == 2 && (dst.as_ptr() as usize) % 16 == 0);
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: `dst` is two valid, exclusive f64s at a 16-byte aligned address (checked by the
+    // caller: an aligned block and an even row length); `movntpd` is SSE2, in the x86-64
+    // baseline. Its weak ordering is ended by `store_fence` before the chunk is done.
+    unsafe {
+        use std::arch::x86_64::{_mm_set_pd, _mm_stream_pd};
+        _mm_stream_pd(dst.as_mut_ptr(), _mm_set_pd(v[1], v[0]))
+    };
+    #[cfg(not(target_arch = "x86_64"))]
+    dst.copy_from_slice(&v);
+}
 
 /// `*dst = v`, bypassing the caches where the CPU can (x86-64: `movnti`); [`store_fence`] after.
 #[inline(always)]

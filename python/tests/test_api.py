@@ -144,13 +144,18 @@ def test_the_stubs_name_what_the_module_has():
     assert {k for k in dir(dynid.Arm) if not k.startswith("_")} <= methods
 
 
-def test_a_large_reused_output_written_with_streaming_stores_holds_the_same_numbers(puma):
-    """Past 8 MB a reused out= is written with non-temporal stores (src/batch.rs): same values, every sample."""
+@pytest.mark.parametrize("name, samples", [("puma560", 5001), ("panda", 3501)])
+def test_a_large_reused_output_written_with_streaming_stores_holds_the_same_numbers(name, samples):
+    """Past 8 MB a reused out= is written with non-temporal stores (src/batch.rs): same values, every sample.
+    PUMA: 5001 · 6 · 36 · 8 bytes = 8.6 MB, rows of an even length (16-byte pairs); Panda: 3501 · 7 · 43 · 8 bytes
+    = 8.4 MB, odd rows (value by value); both with a scalar tail (samples mod 4 = 1)."""
+    arm = dynid.Arm(name)
     rng = np.random.default_rng(12)
-    q, dq, ddq = random_states(puma, 5001, rng)  # 5001 · 6 · 36 · 8 bytes = 8.6 MB, and a scalar tail
-    want = puma.base_regressor(q, dq, ddq)
+    q, dq, ddq = random_states(arm, samples, rng)
+    want = arm.base_regressor(q, dq, ddq)
+    assert want.nbytes > 8 << 20
     y = np.full_like(want, np.nan)
     for threads in (1, None):
         y[:] = np.nan
-        puma.base_regressor(q, dq, ddq, out=y, threads=threads)
+        arm.base_regressor(q, dq, ddq, out=y, threads=threads)
         assert np.array_equal(y, want)
