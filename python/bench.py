@@ -2,9 +2,11 @@
 in one call, against
 
 - the Rust lane-batched throughput: ``examples/batch_throughput.rs`` runs the bindings' own batch driver
-  (``src/batch.rs``) from Rust on the same jobs — N samples into a new output (``fresh``, what the Python call
-  does), into a preallocated one (``reuse``, the Python call with ``out=``) — and the lane-batched kernels alone
-  with their output kept in the cache (``kernel``, what ``dynid bench``'s lanes column measures);
+  (``src/batch.rs``) from Rust on the same jobs — N samples into a new output (``fresh``), into a preallocated one
+  (``reuse``, the Python call with ``out=``) — and the lane-batched kernels alone with their output kept in the
+  cache (``kernel``, what ``dynid bench``'s lanes column measures). The plain Python call (``plain``) gets its
+  output from the bindings' buffer pool (``src/pool.rs``: the buffer of the previous, dropped output of that size);
+  ``new size`` is the plain call on a size never seen (fresh pages, like Rust's ``fresh``);
 - a Python loop over Pinocchio's ``computeJointTorqueRegressor`` on the same states (the first ``--pin-samples``).
 
 All measured in this one run, interleaved (Python, Rust, Python, Rust, ...), medians over the rounds, single-threaded
@@ -99,7 +101,9 @@ def main() -> int:
     y = np.zeros((N, n, arm.nb))
     y[:] = 1.0  # touched: `reuse` measures the kernels and the writes, not first-touch page faults
     threads = {"1 thread": (1, 1), f"all cores ({cores})": (None, 0)}
-    jobs = [(t, mode) for t in threads for mode in ("fresh", "reuse")]
+    jobs = [(t, mode) for t in threads for mode in ("new size", "plain", "reuse")]
+    rust_mode = {"new size": "fresh", "plain": "fresh", "reuse": "reuse"}
+    unseen = iter(range(N - 1, 0, -1))  # a size no earlier call had: the pool cannot serve it
     py: dict[tuple[str, str], list[float]] = {j: [] for j in jobs}
     rs: dict[tuple[str, str], list[float]] = {j: [] for j in jobs}
     kernel_only: list[float] = []
@@ -107,8 +111,11 @@ def main() -> int:
     for _ in range(args.rounds):
         for label, mode in jobs:
             py_threads, rust_threads = threads[label]
-            py[(label, mode)].append(time_python(arm, q, dq, ddq, py_threads, y if mode == "reuse" else None))
-            rs[(label, mode)].append(time_rust(exe, N, rust_threads, mode))
+            m = next(unseen) if mode == "new size" else N
+            py[(label, mode)].append(
+                time_python(arm, q[:m], dq[:m], ddq[:m], py_threads, y if mode == "reuse" else None)
+            )
+            rs[(label, mode)].append(time_rust(exe, N, rust_threads, rust_mode[mode]))
         kernel_only.append(time_rust(exe, N, 1, "kernel"))
     pin_ns = statistics.median(time_pinocchio(arm, q[: args.pin_samples], dq, ddq) for _ in range(3))
     kernel_ns = statistics.median(kernel_only)
@@ -125,7 +132,7 @@ def main() -> int:
     print(f"Python loop over pin.computeJointTorqueRegressor ({args.pin_samples} states): {pin_ns:,.0f} ns/sample")
     print(f"Rust lane-batched kernels alone, output in cache, 1 thread: {kernel_ns:.1f} ns/sample")
     head = ("", "output", "Python", "Rust", "Rust/Python", "kernels alone/Python", "Pinocchio loop/Python")
-    print("{:>14} {:>7} {:>8} {:>8} {:>12} {:>21} {:>22}".format(*head))
+    print("{:>14} {:>8} {:>8} {:>8} {:>12} {:>21} {:>22}".format(*head))
     for label, mode in jobs:
         p, r = statistics.median(py[(label, mode)]), statistics.median(rs[(label, mode)])
         result["jobs"].append(
@@ -141,7 +148,7 @@ def main() -> int:
                 "rust_runs": rs[(label, mode)],
             }
         )
-        print(f"{label:>14} {mode:>7} {p:8.1f} {r:8.1f} {r / p:11.2f}x {kernel_ns / p:20.2f}x {pin_ns / p:21.1f}x")
+        print(f"{label:>14} {mode:>8} {p:8.1f} {r:8.1f} {r / p:11.2f}x {kernel_ns / p:20.2f}x {pin_ns / p:21.1f}x")
     if args.json:
         Path(args.json).parent.mkdir(parents=True, exist_ok=True)
         Path(args.json).write_text(json.dumps(result, indent=1))

@@ -146,9 +146,8 @@ impl Arm {
         if let Some(b) = batch {
             dims.insert(0, b);
         }
-        let out_is_new = out.is_none();
-        let out = match out {
-            None => PyArrayDyn::<f64>::zeros(py, IxDyn(&dims), false),
+        let (out, out_is_new) = match out {
+            None => crate::pool::output(py, &dims)?,
             Some(o) => {
                 let wrong = || {
                     let shape: Vec<String> = dims.iter().map(usize::to_string).collect();
@@ -162,7 +161,7 @@ impl Arm {
                 if a.shape() != dims.as_slice() || !a.is_c_contiguous() {
                     return Err(wrong());
                 }
-                a.clone()
+                (a.clone(), false)
             }
         };
         {

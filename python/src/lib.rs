@@ -8,6 +8,7 @@ mod arm;
 mod batch;
 mod ident;
 mod input;
+mod pool;
 
 use std::path::{Path, PathBuf};
 

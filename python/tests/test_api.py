@@ -159,3 +159,24 @@ def test_a_large_reused_output_written_with_streaming_stores_holds_the_same_numb
         y[:] = np.nan
         arm.base_regressor(q, dq, ddq, out=y, threads=threads)
         assert np.array_equal(y, want)
+
+
+def test_large_outputs_come_from_reused_buffers_never_shared_with_a_live_array():
+    """Outputs of >= 8 MB are Rust buffers lent to numpy and taken back when the array dies (src/pool.rs): the next
+    call of that size writes into the same memory — every value, whatever was left there — and no buffer is lent twice
+    while an array or a view of it lives."""
+    arm = dynid.Arm("puma560")
+    q, dq, ddq = random_states(arm, 5003, np.random.default_rng(13))
+    want = arm.base_regressor(q, dq, ddq)
+    assert want.nbytes >= 8 << 20 and want.flags.writeable
+    a = arm.base_regressor(q, dq, ddq)
+    assert not np.shares_memory(a, want) and np.array_equal(a, want)
+    a[:] = np.nan
+    address = a.ctypes.data
+    del a
+    b = arm.base_regressor(q, dq, ddq)
+    assert b.ctypes.data == address and np.array_equal(b, want)
+    view = b[17]
+    del b
+    c = arm.base_regressor(q, dq, ddq)
+    assert not np.shares_memory(view, c) and np.array_equal(view, want[17]) and np.array_equal(c, want)
