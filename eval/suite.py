@@ -421,7 +421,21 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--keep", action="store_true", help="keep every case's logs and reports under OUT/")
     ap.add_argument("--quick", action="store_true", help="the test command's subset: <= 4 joints, <= 500 Hz, 15 s")
     ap.add_argument("--pattern", type=Path, help="run one hand-written case (eval/patterns/*.json) instead")
+    ap.add_argument(
+        "--rescore", type=Path, nargs="+", metavar="DIR", help="score earlier runs' OUT dirs together (no identify)"
+    )
     a = ap.parse_args(argv)
+    if a.rescore:
+        cases = [c for d in a.rescore for c in json.loads((d / "cases.json").read_text())]
+        seeds = sorted(c["spec"]["seed"] for c in cases)
+        a.first_seed, a.cases = seeds[0], len(cases)
+        summary = score(cases)
+        a.out.mkdir(parents=True, exist_ok=True)
+        (a.out / "summary.json").write_text(json.dumps(summary, indent=1))
+        md = markdown(summary, a)
+        (a.out / "summary.md").write_text(md)
+        print(md)
+        return 0
     try:
         import mujoco  # noqa: F401
     except ImportError as e:

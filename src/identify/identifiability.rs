@@ -92,3 +92,16 @@ pub fn undetermined_warning(u: &[Undetermined]) -> Option<String> {
         names.join(", ")
     ))
 }
+
+/// One warning naming the base parameters held at zero because the training data cannot
+/// determine them at all (their columns are combinations of the others), if any.
+pub fn fixed_warning(fixed: &[String]) -> Option<String> {
+    if fixed.is_empty() {
+        return None;
+    }
+    let names: Vec<String> = fixed.iter().map(|n| format!("`{n}`")).collect();
+    Some(format!(
+        "the training data cannot identify {} (each column is a combination of the others in this data): held at 0 in the least-squares fit, not fitted — so that fit is no model of them, and the physically consistent estimate decides them from `--prior` (without one, from its weak pull towards zero). Record motion that moves the joints they belong to through wide ranges with changing velocity.",
+        names.join(", ")
+    ))
+}

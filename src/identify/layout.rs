@@ -20,6 +20,9 @@ pub struct Layout {
     /// Per joint, the base columns that can be non-zero in its rows (structurally zero ones
     /// are left out of its accumulators).
     pub base_active: Vec<Vec<usize>>,
+    /// Base columns the training data cannot determine (combinations of the other columns):
+    /// held at zero, never fitted ([`super::run_prepared`]); the report names them.
+    pub fixed: Vec<usize>,
     /// Coefficients (one per column, zero on the [`Effect::LOADED`] ones) of the first-stage
     /// model whose predicted torque the load-dependent columns use; empty when there are none.
     pub load: Vec<f64>,
@@ -143,6 +146,7 @@ pub(super) fn make_layout(
         terms,
         scales,
         base_active,
+        fixed: Vec::new(),
         load: Vec::new(),
     };
     (layout, declared, searched, merged)

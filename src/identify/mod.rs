@@ -268,11 +268,23 @@ pub fn run_prepared(
     cfg: &Config,
 ) -> Result<Outcome, IdentifyError> {
     let (layout, declared, searched, merged) = make_layout(base, table, train, cfg);
-    let problem = Problem::build(base, layout, train, cfg.blocks);
+    let mut problem = Problem::build(base, layout, train, cfg.blocks);
+    let rigid = problem.subset(&[]);
+    let independent = problem.independent(&rigid);
+    problem.layout.fixed = rigid
+        .into_iter()
+        .filter(|c| !independent.contains(c))
+        .collect();
+    if independent.is_empty() {
+        let e = problem.rank_error(&problem.layout.fixed);
+        return Err(IdentifyError::Rank(problem::with_hint(e, train)));
+    }
     let first = select::first_stage(problem, train, cfg, declared, &searched)?;
     let selected = load_stage(base, train, cfg, first)?;
     let mut out = outcome::assemble(arm, base, train, val, cfg, selected, &merged)?;
     out.warnings = identifiability::warnings(train, table, base.dof());
+    out.warnings
+        .extend(identifiability::fixed_warning(&out.fixed));
     out.warnings
         .extend(identifiability::undetermined_warning(&out.undetermined));
     Ok(out)

@@ -120,6 +120,8 @@ pub struct Outcome {
     pub consistent: Option<ModelResult>,
     /// What the training data cannot determine ([`super::identifiability`]).
     pub warnings: Vec<String>,
+    /// Base parameters held at zero: the training data cannot determine them at all.
+    pub fixed: Vec<String>,
     /// Parameters whose one-σ uncertainty moves the prediction by more than the residual
     /// ([`super::identifiability::torque_sigma`]).
     pub undetermined: Vec<Undetermined>,
@@ -169,7 +171,9 @@ pub(super) fn assemble(
     } else {
         (None, None)
     };
-    let consistent_x = physical.as_ref().map(|p| p.x.as_slice());
+    let consistent_x = physical
+        .as_ref()
+        .map(|p| (p.subset.as_slice(), p.x.as_slice()));
     let (before, after, consistent, steps) = models.judge(base, &problem, train, val, consistent_x);
     let (theta, effects) = estimates(layout, &selection, &after, &last.loo);
     let std: Vec<f64> = theta
@@ -231,6 +235,11 @@ pub(super) fn assemble(
         physical_error,
         consistent,
         warnings: Vec::new(),
+        fixed: layout
+            .fixed
+            .iter()
+            .map(|&c| layout.base_names[c].clone())
+            .collect(),
         undetermined,
     })
 }
@@ -305,7 +314,7 @@ impl Models {
         problem: &Problem,
         train: &[Prepared],
         val: Option<&Prepared>,
-        consistent: Option<&[f64]>,
+        consistent: Option<(&[usize], &[f64])>,
     ) -> (ModelResult, ModelResult, Option<ModelResult>, Vec<StepRow>) {
         let layout = &problem.layout;
         let mut judged: Vec<Judged> = self
@@ -317,10 +326,11 @@ impl Models {
                 loo: Some(&f.loo),
             })
             .collect();
-        // The consistent estimate last, on the final model's columns (no held-out refits).
-        if let Some(x) = consistent {
+        // The consistent estimate last, on its columns (the final model's, and any base column
+        // least squares held at zero; no held-out refits).
+        if let Some((subset, x)) = consistent {
             judged.push(Judged {
-                subset: &self.fitted[1].subset,
+                subset,
                 x: Some(x),
                 loo: None,
             });
@@ -376,7 +386,7 @@ impl Models {
         };
         let before = result(0);
         let after = result(1);
-        let consistent = consistent.map(|x| {
+        let consistent = consistent.map(|(subset, x)| {
             let m = self.fitted.len();
             ModelResult {
                 terms: after.terms.clone(),
@@ -384,7 +394,7 @@ impl Models {
                 validation: val_sums.as_ref().map(|v| v.errors(m)),
                 heldout_rms: f64::NAN,
                 from_states: from_states(m),
-                subset: self.fitted[1].subset.clone(),
+                subset: subset.to_vec(),
                 x: x.to_vec(),
             }
         });
@@ -416,16 +426,10 @@ impl Models {
     }
 }
 
-/// The final model's (`after`) parameters, base then effects, with standard deviations from a
-/// jackknife over the blocks (its leave-one-block-out fits `loo`).
-fn estimates(
-    layout: &Layout,
-    selection: &Selection,
-    after: &ModelResult,
-    loo: &[Vec<f64>],
-) -> (Vec<Estimated>, Vec<(Term, Estimated)>) {
+/// Block-jackknife standard deviations of `k` parameters from their leave-one-block-out fits.
+fn jackknife_std(loo: &[Vec<f64>], k: usize) -> Vec<f64> {
     let nb_ = loo.len() as f64;
-    let std: Vec<f64> = (0..after.x.len())
+    (0..k)
         .map(|k| {
             if loo.len() < 2 {
                 return f64::NAN;
@@ -433,40 +437,61 @@ fn estimates(
             let mean = loo.iter().map(|x| x[k]).sum::<f64>() / nb_;
             ((nb_ - 1.0) / nb_ * loo.iter().map(|x| (x[k] - mean).powi(2)).sum::<f64>()).sqrt()
         })
-        .collect();
-    let est = |k: usize, name: String, expression: String, unit: Option<String>| Estimated {
-        name,
-        expression,
-        value: after.x[k],
-        std: std[k],
-        rel_std_percent: if after.x[k] != 0.0 {
-            100.0 * std[k] / after.x[k].abs()
-        } else {
-            f64::INFINITY
-        },
-        unit,
+        .collect()
+}
+
+/// The final model's (`after`) parameters, base then effects, with standard deviations from a
+/// jackknife over the blocks (its leave-one-block-out fits `loo`). A base parameter held at
+/// zero (`layout.fixed`) is 0 with no standard deviation.
+fn estimates(
+    layout: &Layout,
+    selection: &Selection,
+    after: &ModelResult,
+    loo: &[Vec<f64>],
+) -> (Vec<Estimated>, Vec<(Term, Estimated)>) {
+    let std = jackknife_std(loo, after.x.len());
+    let est = |col: usize, name: String, expression: String, unit: Option<String>| {
+        let (value, std) = match after.subset.iter().position(|&c| c == col) {
+            Some(k) => (after.x[k], std[k]),
+            None => (0.0, f64::NAN),
+        };
+        Estimated {
+            name,
+            expression,
+            value,
+            std,
+            rel_std_percent: if value != 0.0 {
+                100.0 * std / value.abs()
+            } else {
+                f64::INFINITY
+            },
+            unit,
+        }
     };
     let theta: Vec<Estimated> = (0..layout.nb)
         .map(|k| {
             let name = layout.base_names[k].clone();
-            est(k, name, layout.base_exprs[k].clone(), None)
+            let mut expr = layout.base_exprs[k].clone();
+            if layout.fixed.contains(&k) {
+                expr += " (held at 0: not identifiable from this data)";
+            }
+            est(k, name, expr, None)
         })
         .collect();
     let effects: Vec<(Term, Estimated)> = selection
         .terms
         .iter()
-        .enumerate()
-        .map(|(i, t)| {
-            let k = layout.nb + i;
-            (
+        .filter_map(|t| {
+            let col = layout.col(t)?;
+            Some((
                 *t,
                 est(
-                    k,
+                    col,
                     t.label(),
                     format!("{} on joint {}", t.effect.name(), t.joint + 1),
                     Some(t.effect.unit().to_string()),
                 ),
-            )
+            ))
         })
         .collect();
     (theta, effects)

@@ -80,9 +80,12 @@ pub struct LinkSummary {
 pub struct Physical {
     /// `π`, 10 per link ([`crate::model::PARAM_ORDER`], about the link-frame origin).
     pub params: Vec<f64>,
-    /// Base parameters then effect coefficients, in the final model's column order.
+    /// Base parameters then effect coefficients, on the columns `subset` (every base column,
+    /// the ones least squares held at zero included, then the final model's effects).
     #[serde(skip)]
     pub x: Vec<f64>,
+    #[serde(skip)]
+    pub subset: Vec<usize>,
     /// Effect coefficients by term.
     #[serde(skip)]
     pub effects: Vec<(Term, f64)>,
@@ -110,16 +113,29 @@ pub(super) fn consistent(
     let layout = &problem.layout;
     let (nb, n) = (layout.nb, layout.dof);
     let subset = &fit.subset;
-    if subset.len() < nb || subset[..nb].iter().enumerate().any(|(i, &c)| i != c) {
-        return Err("the final model does not hold every base parameter".into());
+    let base: Vec<usize> = (0..nb).filter(|c| !layout.fixed.contains(c)).collect();
+    if subset.len() < base.len() || subset[..base.len()] != base[..] {
+        return Err("the final model does not hold every identifiable base parameter".into());
     }
-    let terms: Vec<Term> = subset[nb..].iter().map(|&c| layout.terms[c - nb]).collect();
-    let (normal, _) = problem.normal_equations(subset, w);
+    // Every base column: those least squares held at zero (the data cannot see them) have
+    // their x̂ at 0 and, being combinations of the others, add no curvature the others lack;
+    // the prior or the pull decides them, like every other direction the data cannot see.
+    let full: Vec<usize> = (0..nb)
+        .chain(subset[base.len()..].iter().copied())
+        .collect();
+    let mut x_hat = vec![0.0; full.len()];
+    for (k, c) in subset.iter().enumerate() {
+        if let Some(i) = full.iter().position(|f| f == c) {
+            x_hat[i] = fit.x[k];
+        }
+    }
+    let terms: Vec<Term> = full[nb..].iter().map(|&c| layout.terms[c - nb]).collect();
+    let (normal, _) = problem.normal_equations(&full, w);
     let mut cp = ConsistentProblem::new(
         n,
         terms.len(),
         base_map.clone(),
-        DVector::from_column_slice(&fit.x),
+        DVector::from_column_slice(&x_hat),
         normal,
     );
     for (i, t) in terms.iter().enumerate() {
@@ -169,6 +185,7 @@ pub(super) fn consistent(
     Ok(Physical {
         params: sol.params.iter().copied().collect(),
         x: sol.fitted.iter().copied().collect(),
+        subset: full,
         effects: terms
             .iter()
             .copied()

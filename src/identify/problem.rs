@@ -166,12 +166,13 @@ impl Problem {
 
     /// Base columns plus the columns of `terms`.
     pub fn subset(&self, terms: &[Term]) -> Vec<usize> {
-        let mut s: Vec<usize> = (0..self.layout.nb).collect();
+        let fixed = &self.layout.fixed;
+        let mut s: Vec<usize> = (0..self.layout.nb).filter(|c| !fixed.contains(c)).collect();
         s.extend(terms.iter().filter_map(|t| self.layout.col(t)));
         s
     }
 
-    fn rank_error(&self, dependent: &[usize]) -> RankError {
+    pub(super) fn rank_error(&self, dependent: &[usize]) -> RankError {
         RankError {
             files: self.files.clone(),
             params: dependent.iter().map(|&c| self.layout.col_name(c)).collect(),
