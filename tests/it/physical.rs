@@ -163,24 +163,15 @@ fn dfki_short_training_set_is_made_physical() {
     let arm = data("real/dfki_double_pendulum/arm.toml");
     let run = |r: &str| data(&format!("real/dfki_double_pendulum/run_{r}.csv.gz"));
     let (r0, r1, r2, r4) = (run("00"), run("01"), run("02"), run("04"));
-    let o_s = out.display().to_string();
-    let o = dynid(&[
-        "identify",
-        "--arm",
-        &arm,
-        "--data",
-        &r0,
-        "--data",
-        &r1,
-        "--data",
-        &r2,
-        "--validate",
-        &r4,
-        "--out",
-        &o_s,
-        "--cutoff",
-        "5.524",
-    ]);
+    // Runs 00–02 fitted, run 04 validated, into `out` with `extra` arguments.
+    let identify = |out: &Path, extra: &[&str]| {
+        let o = out.display().to_string();
+        let mut args = vec!["identify", "--arm", &arm, "--data", &r0, "--data", &r1];
+        args.extend(["--data", &r2, "--validate", &r4, "--out", &o]);
+        args.extend(extra);
+        dynid(&args)
+    };
+    let o = identify(&out, &["--cutoff", "5.524"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let r = report(&out);
     let ph = &r["physical"];
@@ -218,29 +209,18 @@ fn dfki_short_training_set_is_made_physical() {
         .collect();
     let fc = format!("{}", r["data"]["validate"]["derivative"]["cutoff_hz"]);
     let out2 = dir.path().join("dfki_states");
-    let o2_s = out2.display().to_string();
     let effects = found.join(",");
-    let o = dynid(&[
-        "identify",
-        "--arm",
-        &arm,
-        "--data",
-        &r0,
-        "--data",
-        &r1,
-        "--data",
-        &r2,
-        "--validate",
-        &r4,
-        "--out",
-        &o2_s,
-        "--effects",
-        &effects,
-        "--cutoff",
-        &fc,
-        "--smoothing",
-        "0.5,states",
-    ]);
+    let o = identify(
+        &out2,
+        &[
+            "--effects",
+            &effects,
+            "--cutoff",
+            &fc,
+            "--smoothing",
+            "0.5,states",
+        ],
+    );
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let r2 = report(&out2);
     let (head, pred) = csv_columns(&out.join("validation_prediction.csv"));
