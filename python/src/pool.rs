@@ -66,7 +66,7 @@ pub fn output<'py>(
         Some(free.swap_remove(k))
     });
     let fresh = reused.is_none();
-    let mut buf = reused.unwrap_or_else(|| vec![0.0; len]);
+    let mut buf = reused.unwrap_or_else(|| fresh_buffer(len));
     let ptr = buf.as_mut_ptr();
     let owner = Bound::new(
         py,
@@ -82,4 +82,30 @@ pub fn output<'py>(
         PyArrayDyn::borrow_from_array(&view, owner.into_any())
     };
     Ok((array, fresh))
+}
+
+/// A zeroed buffer of `len` values; on Linux its pages are asked to be transparent huge pages
+/// (as numpy does for its large arrays): faulting in 2 MB pages instead of 4 kB ones is what
+/// makes a first call of a size ~2× cheaper.
+fn fresh_buffer(len: usize) -> Vec<f64> {
+    let mut buf = vec![0.0; len];
+    #[cfg(target_os = "linux")]
+    {
+        const PAGE: usize = 4096;
+        let start = buf.as_mut_ptr() as usize;
+        let end = start + len * std::mem::size_of::<f64>();
+        let aligned = start.div_ceil(PAGE) * PAGE;
+        if end > aligned {
+            // SAFETY: the range lies inside `buf`'s allocation; madvise only advises the kernel
+            // about pages nothing has touched yet (its failure changes nothing but speed).
+            unsafe {
+                libc::madvise(
+                    aligned as *mut libc::c_void,
+                    end - aligned,
+                    libc::MADV_HUGEPAGE,
+                );
+            }
+        }
+    }
+    buf
 }
