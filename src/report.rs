@@ -184,6 +184,7 @@ pub fn json_report(o: &Outcome, command: &str) -> Value {
         "estimator": "weighted least squares (per-joint 1/sigma), incremental QR, parallel zero-phase filtering of tau and regressor; std by block jackknife; then the physically consistent estimate closest to it in the same weighted metric (`physical`)",
         "physical": physical::json(o),
         "warnings": o.warnings,
+        "fixed": o.fixed,
         "undetermined": o.undetermined,
         "command": command,
     })

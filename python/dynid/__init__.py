@@ -109,7 +109,9 @@ class IdentifyResult:
     when ``out=`` was given, else ``None``), ``files`` (the files written), ``warnings`` (what the data
     cannot identify). Properties: ``effects_found`` (each with its evidence), ``parameters`` (base
     parameters with value, σ and %σ), ``effects`` (effect coefficients), ``errors`` (relative RMS torque
-    errors before/after, training/validation), ``cutoff_hz``.
+    errors before/after, training/validation), ``cutoff_hz``, ``fixed`` (base parameters the data cannot see at
+    all, held at 0), ``undetermined`` (parameters the data leave free: a one-σ change moves the prediction by more
+    than the residual).
     """
 
     report: dict[str, Any]
@@ -144,6 +146,16 @@ class IdentifyResult:
     @property
     def cutoff_hz(self) -> float:
         return self.report["data"]["train"][0]["derivative"]["cutoff_hz"]
+
+    @property
+    def fixed(self) -> list[str]:
+        """Base parameters whose columns are combinations of the others in this data: held at 0, not fitted."""
+        return list(self.report["fixed"])
+
+    @property
+    def undetermined(self) -> list[dict[str, Any]]:
+        """``{"name", "value", "std", "torque_sigma"}`` of each parameter the data leave free."""
+        return list(self.report["undetermined"])
 
     def __repr__(self) -> str:
         found = ", ".join(e["name"] for e in self.effects_found) or "none"

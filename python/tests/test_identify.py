@@ -7,6 +7,7 @@ import json
 import math
 import pickle
 import subprocess
+import warnings
 
 import dynid
 import numpy as np
@@ -81,3 +82,27 @@ def test_bad_data_is_a_dynid_error_with_the_row_and_column():
         dynid.identify("planar2", np.zeros((100, 4)))
     with pytest.raises(dynid.DynidError, match="effects: "):
         dynid.identify("planar2", SET / "excite_noisy.csv.gz", effects="viscus")
+
+
+def test_what_the_data_cannot_identify_is_in_the_result():
+    """Joint 1 of a 2-DOF arm never moves: ZZR1 and one of its gravity pair are held at 0 (result.fixed) and the
+    warnings say so; torques from the arm's own inverse dynamics (physical links, 1 % noise)."""
+    arm = dynid.Arm("planar2")
+    t = np.arange(0.0, 20.0, 0.002)
+    q = np.column_stack([np.full_like(t, 0.5), np.sin(0.9 * t) + 0.3 * np.sin(2.3 * t)])
+    dq = np.column_stack([np.zeros_like(t), 0.9 * np.cos(0.9 * t) + 0.69 * np.cos(2.3 * t)])
+    ddq = np.column_stack([np.zeros_like(t), -0.81 * np.sin(0.9 * t) - 1.587 * np.sin(2.3 * t)])
+    p = np.zeros(arm.np)
+    p[[0, 3, 5, 6, 9]] = [0.2, 0.3, 0.3, 0.5, 2.0]  # link 1: XX, YY, ZZ, MX, M
+    p[[10, 13, 15, 16, 19]] = [0.05, 0.15, 0.15, 0.3, 1.0]  # link 2
+    tau = arm.inverse_dynamics(q, dq, ddq, p)
+    tau += 0.01 * tau.std(axis=0) * np.random.default_rng(3).standard_normal(tau.shape)
+    data = {"t": t, "q1": q[:, 0], "q2": q[:, 1], "tau1": tau[:, 0], "tau2": tau[:, 1]}
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")
+        r = dynid.identify(arm, data)
+    assert any("cannot identify `ZZR1`" in str(w.message) for w in said), [str(w.message) for w in said]
+    assert any(str(w.message).startswith("joint 1 barely moves") for w in said)
+    assert r.fixed[0] == "ZZR1" and len(r.fixed) == 2, r.fixed
+    assert all(p["value"] == 0.0 for p in r.parameters if p["name"] in r.fixed)
+    assert isinstance(r.undetermined, list)

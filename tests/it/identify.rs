@@ -844,6 +844,9 @@ fn bad_input_is_rejected_with_a_clear_message_and_no_output() {
         md.contains("held at 0: not identifiable from this data"),
         "{md}"
     );
+    let json = std::fs::read_to_string(out.join("report.json")).unwrap();
+    let r: serde_json::Value = serde_json::from_str(&json).unwrap();
+    assert_eq!(r["fixed"][0], "ZZR1", "{}", r["fixed"]);
     let strict = dir.path().join("out_still_strict");
     let o = bin()
         .args(["identify", "--arm", "planar2", "--strict", "--data"])
