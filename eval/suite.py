@@ -411,6 +411,14 @@ def markdown(s: dict, args: argparse.Namespace) -> str:
     return "\n".join(lines) + "\n"
 
 
+def write_summary(summary: dict, a: argparse.Namespace) -> None:
+    """OUT/summary.json and OUT/summary.md, and the tables on stdout."""
+    (a.out / "summary.json").write_text(json.dumps(summary, indent=1))
+    md = markdown(summary, a)
+    (a.out / "summary.md").write_text(md)
+    print(md)
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--dynid", required=True)
@@ -429,12 +437,8 @@ def main(argv: list[str] | None = None) -> int:
         cases = [c for d in a.rescore for c in json.loads((d / "cases.json").read_text())]
         seeds = sorted(c["spec"]["seed"] for c in cases)
         a.first_seed, a.cases = seeds[0], len(cases)
-        summary = score(cases)
         a.out.mkdir(parents=True, exist_ok=True)
-        (a.out / "summary.json").write_text(json.dumps(summary, indent=1))
-        md = markdown(summary, a)
-        (a.out / "summary.md").write_text(md)
-        print(md)
+        write_summary(score(cases), a)
         return 0
     try:
         import mujoco  # noqa: F401
@@ -460,10 +464,7 @@ def main(argv: list[str] | None = None) -> int:
     summary = score(cases)
     summary["wall_seconds"] = time.perf_counter() - start
     (a.out / "cases.json").write_text(json.dumps(cases, indent=1))
-    (a.out / "summary.json").write_text(json.dumps(summary, indent=1))
-    md = markdown(summary, a)
-    (a.out / "summary.md").write_text(md)
-    print(md)
+    write_summary(summary, a)
     print(f"wall time {summary['wall_seconds']:.0f} s")
     return 0
 
