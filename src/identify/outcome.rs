@@ -175,23 +175,28 @@ pub(super) fn assemble(
         .as_ref()
         .map(|p| (p.subset.as_slice(), p.x.as_slice()));
     let (before, after, consistent, steps) = models.judge(base, &problem, train, val, consistent_x);
-    let (theta, effects) = estimates(layout, &selection, &after, &last.loo);
-    let std: Vec<f64> = theta
-        .iter()
-        .chain(effects.iter().map(|(_, e)| e))
-        .map(|e| e.std)
-        .collect();
+    let std = jackknife_std(&last.loo, last.subset.len());
+    let (theta, effects) = estimates(layout, &selection, &after, &std);
+    // Per column of the final model (held-at-zero base columns are not among them).
     let sig = super::identifiability::torque_sigma(&problem, &last.subset, &last.w, &std);
-    let undetermined: Vec<Undetermined> = theta
+    let undetermined: Vec<Undetermined> = last
+        .subset
         .iter()
-        .chain(effects.iter().map(|(_, e)| e))
         .zip(&sig)
         .filter(|(_, &c)| c > super::identifiability::UNDETERMINED_SIGMA)
-        .map(|(e, &c)| Undetermined {
-            name: e.name.clone(),
-            value: e.value,
-            std: e.std,
-            torque_sigma: c,
+        .filter_map(|(&col, &c)| {
+            let e = if col < layout.nb {
+                theta.get(col)
+            } else {
+                let t = layout.terms[col - layout.nb];
+                effects.iter().find(|(u, _)| *u == t).map(|(_, e)| e)
+            }?;
+            Some(Undetermined {
+                name: e.name.clone(),
+                value: e.value,
+                std: e.std,
+                torque_sigma: c,
+            })
         })
         .collect();
     let series = make_series(base, layout, train, val, &before, &after);
@@ -440,16 +445,15 @@ fn jackknife_std(loo: &[Vec<f64>], k: usize) -> Vec<f64> {
         .collect()
 }
 
-/// The final model's (`after`) parameters, base then effects, with standard deviations from a
-/// jackknife over the blocks (its leave-one-block-out fits `loo`). A base parameter held at
-/// zero (`layout.fixed`) is 0 with no standard deviation.
+/// The final model's (`after`) parameters, base then effects, with their standard deviations
+/// `std` (per column of `after.subset`, from [`jackknife_std`]). A base parameter held at zero
+/// (`layout.fixed`) is 0 with no standard deviation.
 fn estimates(
     layout: &Layout,
     selection: &Selection,
     after: &ModelResult,
-    loo: &[Vec<f64>],
+    std: &[f64],
 ) -> (Vec<Estimated>, Vec<(Term, Estimated)>) {
-    let std = jackknife_std(loo, after.x.len());
     let est = |col: usize, name: String, expression: String, unit: Option<String>| {
         let (value, std) = match after.subset.iter().position(|&c| c == col) {
             Some(k) => (after.x[k], std[k]),

@@ -997,6 +997,10 @@ fn base_parameters_the_data_cannot_see_are_held_at_zero_and_named() {
     let o = identify::run(&arm, vec![tr.into()], Some(va.into()), &Config::default())
         .unwrap_or_else(|e| panic!("must be a warning, not an error: {e}"));
     assert_eq!(o.fixed, ["ZZR1", "MXR1"], "{:?}", o.fixed);
+    // Named as undetermined only among the fitted ones, with their own σ.
+    for u in &o.undetermined {
+        assert!(!o.fixed.contains(&u.name) && u.std.is_finite(), "{u:?}");
+    }
     for t in &o.theta {
         let fixed = o.fixed.contains(&t.name);
         assert_eq!(fixed, t.value == 0.0 && t.std.is_nan(), "{t:?}");
