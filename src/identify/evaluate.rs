@@ -27,6 +27,8 @@ pub struct Judged<'a> {
 pub enum Prediction {
     Chosen,
     States,
+    /// Always the one from the parallel-filtered rows (the cut-off scan judges both).
+    Filtered,
 }
 
 /// Per model and joint, `Σ (τ − τ̂)²` over the raw samples (with the full-data parameters) and
@@ -80,9 +82,24 @@ pub fn raw_sums(
     models: &[Judged],
     prediction: Prediction,
 ) -> RawSums {
+    let mut all = raw_sums_each(base, layout, files, blocks, models, &[prediction]);
+    all.pop().expect("one prediction asked, one returned")
+}
+
+/// [`raw_sums`] of each of `predictions` (in order) from one evaluation of the rows: the
+/// prediction from the states is that of the filtered rows before the filter (the filter is
+/// linear), so both cost one pass.
+pub fn raw_sums_each(
+    base: &BaseModel,
+    layout: &Layout,
+    files: &[Prepared],
+    blocks: Option<&[usize]>,
+    models: &[Judged],
+    predictions: &[Prediction],
+) -> Vec<RawSums> {
     let n = layout.dof;
     let active: Vec<Vec<usize>> = (0..n).map(|j| layout.active(j)).collect();
-    let mut total = RawSums::zero(models.len(), n);
+    let mut total = vec![RawSums::zero(models.len(), n); predictions.len()];
     let mut offset = 0;
     for (fi, p) in files.iter().enumerate() {
         let nblocks = blocks.map_or(1, |b| b[fi]);
@@ -99,10 +116,18 @@ pub fn raw_sums(
                 sets.extend((0..nblocks).map(|b| per_joint(&loo[offset + b])));
             }
         }
-        let parts: Vec<RawSums> = raw_cores(p)
+        // Per prediction asked: whether it is of the filtered rows in this file.
+        let filtered: Vec<bool> = predictions
+            .iter()
+            .map(|&pr| match pr {
+                Prediction::Chosen => p.smoothing.filtered_prediction,
+                Prediction::States => false,
+                Prediction::Filtered => true,
+            })
+            .collect();
+        let parts: Vec<Vec<RawSums>> = raw_cores(p)
             .par_iter()
             .map(|&core| {
-                let mut sums = RawSums::zero(models.len(), n);
                 let mut rows = Rows::new(base, layout);
                 // Only the blocks this chunk's samples can fall in (filter margins included).
                 let (b0, b1) = (
@@ -119,36 +144,63 @@ pub fn raw_sums(
                         }
                     }
                 }
-                let filtered = prediction == Prediction::Chosen && p.smoothing.filtered_prediction;
-                let pc = Predicted::new(p, &mut rows, &active, core, &sets, &wanted, filtered);
-                raw_in_core(p, core, 1, |_, _, tau, (k, s)| {
-                    let blk = p.block_of(k + usize::from(s >= 0.5), nblocks);
-                    for (ss, t) in sums.tss.iter_mut().zip(tau) {
-                        *ss += t * t;
-                    }
-                    for (m, model) in models.iter().enumerate() {
-                        let full = usize::from(model.x.is_some());
-                        for (j, &t) in tau.iter().enumerate() {
-                            if full == 1 {
-                                let e = t - pc.at(first_set[m], j, (k, s));
-                                sums.sse[m][j] += e * e;
-                            }
-                            if model.loo.is_some() {
-                                let e = t - pc.at(first_set[m] + full + blk, j, (k, s));
-                                sums.heldout[m][j] += e * e;
-                            }
+                let any_filtered = filtered.iter().any(|&f| f);
+                let mut pc =
+                    Predicted::new(p, &mut rows, &active, core, &sets, &wanted, any_filtered);
+                let mut out = vec![RawSums::zero(models.len(), n); predictions.len()];
+                for pass in [false, true] {
+                    if pass {
+                        if !any_filtered {
+                            break;
                         }
+                        pc.filter(p);
                     }
-                });
-                sums
+                    for (sums, _) in out.iter_mut().zip(&filtered).filter(|(_, &f)| f == pass) {
+                        add_core(sums, p, core, nblocks, models, &first_set, &pc);
+                    }
+                }
+                out
             })
             .collect();
         for part in &parts {
-            total.add(part);
+            for (t, s) in total.iter_mut().zip(part) {
+                t.add(s);
+            }
         }
         offset += nblocks;
     }
     total
+}
+
+/// Adds the residuals of one core's raw samples to `sums` (predictions `pc`).
+fn add_core(
+    sums: &mut RawSums,
+    p: &Prepared,
+    core: (usize, usize),
+    nblocks: usize,
+    models: &[Judged],
+    first_set: &[usize],
+    pc: &Predicted,
+) {
+    raw_in_core(p, core, 1, |_, _, tau, (k, s)| {
+        let blk = p.block_of(k + usize::from(s >= 0.5), nblocks);
+        for (ss, t) in sums.tss.iter_mut().zip(tau) {
+            *ss += t * t;
+        }
+        for (m, model) in models.iter().enumerate() {
+            let full = usize::from(model.x.is_some());
+            for (j, &t) in tau.iter().enumerate() {
+                if full == 1 {
+                    let e = t - pc.at(first_set[m], j, (k, s));
+                    sums.sse[m][j] += e * e;
+                }
+                if model.loo.is_some() {
+                    let e = t - pc.at(first_set[m] + full + blk, j, (k, s));
+                    sums.heldout[m][j] += e * e;
+                }
+            }
+        }
+    });
 }
 
 /// A fitted model and its errors.

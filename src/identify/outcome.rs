@@ -4,7 +4,7 @@
 use serde::Serialize;
 
 use super::base::BaseModel;
-use super::evaluate::{raw_sums, Errors, Judged, ModelResult, Prediction, StateErrors};
+use super::evaluate::{raw_sums_each, Errors, Judged, ModelResult, Prediction, StateErrors};
 use super::layout::{Layout, Merged};
 use super::load_stage::{load_model, LoadModel};
 use super::ls;
@@ -341,43 +341,38 @@ impl Models {
             });
         }
         let blocks = Some(problem.raw_blocks());
-        let train_sums = raw_sums(base, layout, train, blocks, &judged, Prediction::Chosen);
-        let val_sums = val.map(|p| {
-            let one = std::slice::from_ref(p);
-            raw_sums(base, layout, one, None, &judged, Prediction::Chosen)
-        });
         // When the prediction is from the filtered rows, the rigid, final and consistent
-        // models are judged again from the estimated states (full-data parameters only).
+        // models are judged from the estimated states too (the same pass over the rows).
         let filtered = train
             .iter()
             .chain(val)
             .any(|p| p.smoothing.filtered_prediction);
+        let preds: &[Prediction] = if filtered {
+            &[Prediction::Chosen, Prediction::States]
+        } else {
+            &[Prediction::Chosen]
+        };
+        let mut train_each = raw_sums_each(base, layout, train, blocks, &judged, preds);
+        let mut val_each = val.map(|p| {
+            let one = std::slice::from_ref(p);
+            raw_sums_each(base, layout, one, None, &judged, preds)
+        });
+        let state_sums = filtered.then(|| {
+            let t = train_each.pop().expect("two predictions");
+            (t, val_each.as_mut().and_then(Vec::pop))
+        });
+        let train_sums = train_each.remove(0);
+        let val_sums = val_each.map(|mut v| v.remove(0));
         let states: Vec<usize> = [0, 1]
             .into_iter()
             .chain(consistent.map(|_| judged.len() - 1))
             .collect();
-        let state_sums = filtered.then(|| {
-            let js: Vec<Judged> = states
-                .iter()
-                .map(|&m| Judged {
-                    subset: judged[m].subset,
-                    x: judged[m].x,
-                    loo: None,
-                })
-                .collect();
-            let t = raw_sums(base, layout, train, blocks, &js, Prediction::States);
-            let v = val.map(|p| {
-                let one = std::slice::from_ref(p);
-                raw_sums(base, layout, one, None, &js, Prediction::States)
-            });
-            (t, v)
-        });
         let from_states = |m: usize| {
-            let i = states.iter().position(|&s| s == m)?;
+            states.iter().position(|&s| s == m)?;
             let (t, v) = state_sums.as_ref()?;
             Some(StateErrors {
-                train: t.errors(i),
-                validation: v.as_ref().map(|v| v.errors(i)),
+                train: t.errors(m),
+                validation: v.as_ref().map(|v| v.errors(m)),
             })
         };
         let result = |m: usize| ModelResult {

@@ -16,11 +16,13 @@ use crate::log::{Table, TableWriter, SPILL_ROWS};
 
 /// Torque predictions of several coefficient sets (`[set][joint][active column]`) on a file's
 /// grid around a core `a..b`: `pred[set][j][k - lo]` for the sets asked for (the others stay
-/// empty), from the rows of the estimated states — and parallel-filtered when the file's
-/// [`Smoothing`] predicts from the filtered rows (the same thing: the filter is linear, so
-/// filtering a prediction equals predicting from filtered rows, at a fraction of the channels).
+/// empty), from the rows of the estimated states — then parallel-filtered ([`Predicted::filter`])
+/// when the file's [`Smoothing`] predicts from the filtered rows (the same thing: the filter is
+/// linear, so filtering a prediction equals predicting from filtered rows, at a fraction of the
+/// channels).
 pub(super) struct Predicted {
     lo: usize,
+    hi: usize,
     pred: Vec<Vec<Vec<f64>>>,
     /// The window's estimated states.
     states: States,
@@ -34,12 +36,13 @@ impl Predicted {
         (a, b): (usize, usize),
         coefs: &[Vec<Vec<f64>>],
         wanted: &[bool],
-        filtered: bool,
+        to_filter: bool,
     ) -> Predicted {
         let (n, nc) = (rows.layout.dof, rows.layout.ncols());
         let g = p.est.grid;
-        // One sample either side at least, for the interpolation to raw sample times.
-        let reach = if filtered {
+        // One sample either side at least, for the interpolation to raw sample times; the
+        // regression filter's reach when the predictions are to be filtered ([`Predicted::filter`]).
+        let reach = if to_filter {
             p.rfilter.as_zero_phase().reach().max(1)
         } else {
             1
@@ -66,17 +69,26 @@ impl Predicted {
                 }
             }
         }
-        if filtered {
-            let mut chans: Vec<&mut [f64]> = pred
-                .iter_mut()
-                .flatten()
-                .map(|c| c.as_mut_slice())
-                .collect();
-            p.rfilter
-                .as_zero_phase()
-                .apply_many(&mut chans, lo == 0, hi == g.n);
+        Predicted {
+            lo,
+            hi,
+            pred,
+            states,
         }
-        Predicted { lo, pred, states }
+    }
+
+    /// The predictions from the filtered rows: those from the states, filtered. Built with
+    /// `filtered`, the window reaches far enough; the samples of the core are then exact.
+    pub(super) fn filter(&mut self, p: &Prepared) {
+        let mut chans: Vec<&mut [f64]> = self
+            .pred
+            .iter_mut()
+            .flatten()
+            .map(|c| c.as_mut_slice())
+            .collect();
+        p.rfilter
+            .as_zero_phase()
+            .apply_many(&mut chans, self.lo == 0, self.hi == p.est.grid.n);
     }
 
     /// Set `c`'s prediction for joint `j` at grid position `(k, s)` (see [`super::prepare::grid_pos`]).
@@ -179,15 +191,11 @@ pub(super) fn for_predictions(
     let mut dq = vec![0.0; n];
     let mut preds = vec![vec![0.0; n]; models.len()];
     for core in raw_cores(p) {
-        let pc = Predicted::new(
-            p,
-            &mut rows,
-            &active,
-            core,
-            &coef,
-            &wanted,
-            p.smoothing.filtered_prediction,
-        );
+        let filtered = p.smoothing.filtered_prediction;
+        let mut pc = Predicted::new(p, &mut rows, &active, core, &coef, &wanted, filtered);
+        if filtered {
+            pc.filter(p);
+        }
         raw_in_core(p, core, stride, |_, t, tau, (k, s)| {
             for j in 0..n {
                 let (d, i) = (&pc.states.dq[j], k - pc.lo);

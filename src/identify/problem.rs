@@ -5,7 +5,7 @@
 use nalgebra::{DMatrix, DVector};
 
 use super::base::BaseModel;
-use super::evaluate::{raw_sums, Judged, Prediction};
+use super::evaluate::{raw_sums, raw_sums_each, Judged, Prediction};
 use super::layout::Layout;
 use super::ls::{self, Accumulator};
 use super::prepare::{cores, Prepared};
@@ -132,6 +132,27 @@ impl Problem {
         Ok(sums.heldout(0))
     }
 
+    /// [`Problem::cv_raw`] of both predictions, from one evaluation of the rows: `(from the
+    /// estimated states, from the parallel-filtered rows)`.
+    pub fn cv_raw_both(
+        &self,
+        base: &BaseModel,
+        train: &[Prepared],
+        subset: &[usize],
+        w: &[f64],
+    ) -> Result<(f64, f64), RankError> {
+        let loo = self.loo_fits(subset, w)?;
+        let m = [Judged {
+            subset,
+            x: None,
+            loo: Some(&loo),
+        }];
+        let blocks = Some(self.raw_blocks());
+        let preds = [Prediction::States, Prediction::Filtered];
+        let sums = raw_sums_each(base, &self.layout, train, blocks, &m, &preds);
+        Ok((sums[0].heldout(0), sums[1].heldout(0)))
+    }
+
     /// Blocks per training file, for [`raw_sums`].
     pub fn raw_blocks(&self) -> &[usize] {
         &self.file_blocks
@@ -139,14 +160,40 @@ impl Problem {
 
     /// Parameters of every leave-one-block-out fit (an error if one is rank-deficient).
     pub fn loo_fits(&self, subset: &[usize], w: &[f64]) -> Result<Vec<Vec<f64>>, RankError> {
+        self.loo_fits_from(None, subset, w)
+    }
+
+    /// [`Problem::loo_fits`], from kept QR prefixes of the left-out blocks' fits when given
+    /// ([`Problem::loo_prefixes`] with the same weights; bit-identical, cheaper).
+    fn loo_fits_from(
+        &self,
+        prefixes: Option<&[ls::Prefix]>,
+        subset: &[usize],
+        w: &[f64],
+    ) -> Result<Vec<Vec<f64>>, RankError> {
         (0..self.blocks())
             .map(|b| {
-                let f: Vec<(&DMatrix<f64>, f64)> =
-                    self.loo[b].iter().zip(w).map(|(r, &w)| (r, w)).collect();
-                ls::solve_x(&f, subset)
-                    .map(|(x, _)| x)
-                    .map_err(|e| self.rank_error(&e.dependent))
+                let f = self.loo_factors(b, w);
+                match prefixes {
+                    Some(p) => ls::solve_x_after(&p[b], &f, subset),
+                    None => ls::solve_x(&f, subset),
+                }
+                .map(|(x, _)| x)
+                .map_err(|e| self.rank_error(&e.dependent))
             })
+            .collect()
+    }
+
+    /// The factors of all blocks but `b`, weighted by `w`.
+    fn loo_factors(&self, b: usize, w: &[f64]) -> Vec<(&DMatrix<f64>, f64)> {
+        self.loo[b].iter().zip(w).map(|(r, &w)| (r, w)).collect()
+    }
+
+    /// The QR of each leave-one-block-out fit over `subset` with weights `w`, kept for fits
+    /// that add columns after `subset` ([`Problem::cv_sse_from`]: each candidate of a step).
+    pub fn loo_prefixes(&self, subset: &[usize], w: &[f64]) -> Vec<ls::Prefix> {
+        (0..self.blocks())
+            .map(|b| ls::Prefix::new(&self.loo_factors(b, w), subset))
             .collect()
     }
 
@@ -248,8 +295,19 @@ impl Problem {
 
     /// Held-out weighted SSE `[block][joint]` of leave-one-block-out refits.
     pub fn cv_sse(&self, subset: &[usize], w: &[f64]) -> Result<Vec<Vec<f64>>, RankError> {
+        self.cv_sse_from(None, subset, w)
+    }
+
+    /// [`Problem::cv_sse`], from kept QR prefixes ([`Problem::loo_prefixes`] with the same
+    /// weights) when given: the same numbers, bit for bit.
+    pub fn cv_sse_from(
+        &self,
+        prefixes: Option<&[ls::Prefix]>,
+        subset: &[usize],
+        w: &[f64],
+    ) -> Result<Vec<Vec<f64>>, RankError> {
         let n = self.layout.dof;
-        let fits = self.loo_fits(subset, w)?;
+        let fits = self.loo_fits_from(prefixes, subset, w)?;
         Ok(fits
             .iter()
             .zip(&self.blocks)

@@ -5,6 +5,7 @@
 
 use std::f64::consts::SQRT_2;
 
+use rayon::prelude::*;
 use serde::Serialize;
 
 use super::base::BaseModel;
@@ -137,53 +138,75 @@ pub fn choose_cutoff(
     }
     let scan_files = scan_pieces(train);
     let all: Vec<Term> = layout.terms.clone();
-    let mut trials = Vec::new();
     // One cut-off and regression ratio: both predictions judged on one problem.
-    let trial = |trials: &mut Vec<CutoffTrial>, fc: f64, ratio: f64| -> Result<(), IdentifyError> {
+    let trial = |fc: f64, ratio: f64| -> Result<Vec<CutoffTrial>, IdentifyError> {
         let sm = Smoothing {
             regression_ratio: ratio,
             filtered_prediction: false,
         };
-        // Not cached: one cut-off's estimates at a time (memory stays that of one copy).
-        let mut preps: Vec<Prepared> = scan_files
+        // Not cached: one cut-off's estimates at a time per thread (memory stays that of one
+        // copy per core).
+        let preps: Vec<Prepared> = scan_files
             .iter()
             .map(|t| Prepared::with_cutoff(t.clone(), cfg, Some(fc), sm, Some(edge_fc)))
             .collect::<Result<_, _>>()?;
         let problem = Problem::build(base, layout.clone(), &preps, cfg.blocks);
         let subset = problem.independent(&problem.subset(&all));
         let Ok(w) = problem.weights(&subset) else {
-            return Ok(());
+            return Ok(Vec::new());
         };
-        for &filtered in &modes {
-            for p in &mut preps {
-                p.smoothing.filtered_prediction = filtered;
+        let errors: Vec<(bool, f64)> = match modes[..] {
+            [filtered] => {
+                let mut preps = preps;
+                for p in &mut preps {
+                    p.smoothing.filtered_prediction = filtered;
+                }
+                problem
+                    .cv_raw(base, &preps, &subset, &w)
+                    .map(|e| vec![(filtered, e)])
             }
-            if let Ok(e) = problem.cv_raw(base, &preps, &subset, &w) {
-                trials.push(CutoffTrial {
-                    cutoff_hz: fc,
-                    smoothing: preps[0].smoothing,
-                    heldout_error: e,
-                });
-            }
+            _ => problem
+                .cv_raw_both(base, &preps, &subset, &w)
+                .map(|(s, f)| vec![(false, s), (true, f)]),
         }
-        Ok(())
+        .unwrap_or_default();
+        Ok(errors
+            .into_iter()
+            .map(|(filtered, e)| CutoffTrial {
+                cutoff_hz: fc,
+                smoothing: Smoothing {
+                    filtered_prediction: filtered,
+                    ..sm
+                },
+                heldout_error: e,
+            })
+            .collect())
     };
-    for &fc in &grid {
-        for &ratio in &ratios {
-            trial(&mut trials, fc, ratio)?;
+    // The trials of several cut-offs and ratios in parallel, in order.
+    let run = |points: Vec<(f64, f64)>| -> Result<Vec<CutoffTrial>, IdentifyError> {
+        let done: Vec<Result<Vec<CutoffTrial>, IdentifyError>> =
+            points.par_iter().map(|&(fc, r)| trial(fc, r)).collect();
+        let mut out = Vec::new();
+        for d in done {
+            out.extend(d?);
         }
-    }
+        Ok(out)
+    };
+    let points = |fcs: &[f64]| -> Vec<(f64, f64)> {
+        fcs.iter()
+            .flat_map(|&fc| ratios.iter().map(move |&r| (fc, r)))
+            .collect()
+    };
+    let mut trials = run(points(&grid))?;
     // Half a step either side of the coarse grid's best.
     if grid.len() > 1 {
         if let Some(best) = best_trial(&trials).map(|b| b.cutoff_hz) {
             let (lo, hi) = (grid[0], grid[grid.len() - 1]);
-            for fc in [best / SQRT_2, best * SQRT_2] {
-                if (lo..=hi).contains(&fc) {
-                    for &ratio in &ratios {
-                        trial(&mut trials, fc, ratio)?;
-                    }
-                }
-            }
+            let near: Vec<f64> = [best / SQRT_2, best * SQRT_2]
+                .into_iter()
+                .filter(|fc| (lo..=hi).contains(fc))
+                .collect();
+            trials.extend(run(points(&near))?);
         }
     }
     let choice = best_trial(&trials).map_or(fallback, |b| FilterChoice {

@@ -22,9 +22,10 @@
 //! The **held-out gain** of a candidate is the fraction of *its joint's* held-out residual
 //! removed (a share ≤ 100 %); it was the gain over all joints divided by one joint's residual.
 
+use rayon::prelude::*;
 use serde::Serialize;
 
-use super::ls::t_quantile;
+use super::ls::{t_quantile, Prefix};
 use super::prepare::Prepared;
 use super::problem::{with_hint, Problem};
 use super::{Config, IdentifyError, RankError};
@@ -153,7 +154,9 @@ pub fn select(
     for _ in 0..rules.max_steps {
         let subset = p.subset(&terms);
         let w = p.weights(&subset)?;
-        let cur = p.cv_sse(&subset, &w)?;
+        // Every candidate's fits extend this model's: their QR starts from its reflections.
+        let prefixes = p.loo_prefixes(&subset, &w);
+        let cur = p.cv_sse_from(Some(&prefixes), &subset, &w)?;
         let open: Vec<Term> = candidates
             .iter()
             .copied()
@@ -167,8 +170,12 @@ pub fn select(
         // The best passing candidate is added; the best overall is reported when none passes.
         let mut best: Option<Evidence> = None;
         let mut best_pass: Option<Evidence> = None;
-        for &c in &open {
-            let Some(ev) = evidence(p, &terms, &subset, &w, &cur, c, t_crit) else {
+        let found: Vec<Option<Evidence>> = open
+            .par_iter()
+            .map(|&c| evidence(p, &terms, (&subset, &prefixes), &w, &cur, c, t_crit))
+            .collect();
+        for (&c, ev) in open.iter().zip(found) {
+            let Some(ev) = ev else {
                 if !collinear.contains(&c.label()) {
                     collinear.push(c.label());
                 }
@@ -202,7 +209,7 @@ pub fn select(
                     evidence: b,
                 });
             }
-            None => match group_step(p, &terms, &open, &collinear, (&w, &cur), rules)? {
+            None => match group_step(p, &terms, &open, &collinear, (&w, &cur, &prefixes), rules)? {
                 Some(group) => {
                     for mut ev in group {
                         ev.accepted = true;
@@ -244,7 +251,7 @@ fn group_step(
     terms: &[Term],
     open: &[Term],
     collinear: &[String],
-    (w, cur): (&[f64], &[Vec<f64>]),
+    (w, cur, prefixes): (&[f64], &[Vec<f64>], &[Prefix]),
     rules: &Rules,
 ) -> Result<Option<Vec<Evidence>>, RankError> {
     let blocks = p.blocks();
@@ -270,14 +277,17 @@ fn group_step(
     }
     let t_group = t_quantile(1.0 - rules.alpha / groups.len() as f64, (blocks - 1) as f64);
     let mut best: Option<(f64, Vec<Term>)> = None;
-    for g in &groups {
-        let mut with = terms.to_vec();
-        with.extend(g);
-        let Ok(new) = p.cv_sse(&p.subset(&with), w) else {
-            continue;
-        };
-        let j = g[0].joint;
-        let (t_stat, gain) = joint_test(cur, &new, j);
+    let tested: Vec<Option<(f64, f64)>> = groups
+        .par_iter()
+        .map(|g| {
+            let mut with = terms.to_vec();
+            with.extend(g);
+            let new = p.cv_sse_from(Some(prefixes), &p.subset(&with), w).ok()?;
+            Some(joint_test(cur, &new, g[0].joint))
+        })
+        .collect();
+    for (g, t) in groups.iter().zip(tested) {
+        let Some((t_stat, gain)) = t else { continue };
         if t_stat > t_group && gain >= rules.min_gain && best.as_ref().map_or(true, |b| gain > b.0)
         {
             best = Some((gain, g.clone()));
@@ -289,17 +299,21 @@ fn group_step(
     // Backward pruning: each member must pass as the last one added.
     loop {
         let t_crit = t_quantile(1.0 - rules.alpha / open.len() as f64, (blocks - 1) as f64);
+        let tested: Vec<Result<Option<Evidence>, RankError>> = members
+            .par_iter()
+            .map(|&m| {
+                let mut base = terms.to_vec();
+                base.extend(members.iter().copied().filter(|&o| o != m));
+                let sub = p.subset(&base);
+                let w2 = p.weights(&sub)?;
+                let pre = p.loo_prefixes(&sub, &w2);
+                let cur2 = p.cv_sse_from(Some(&pre), &sub, &w2)?;
+                Ok(evidence(p, &base, (&sub, &pre), &w2, &cur2, m, t_crit))
+            })
+            .collect();
         let mut evs = Vec::new();
-        for &m in &members {
-            let mut base = terms.to_vec();
-            base.extend(members.iter().copied().filter(|&o| o != m));
-            let sub = p.subset(&base);
-            let w2 = p.weights(&sub)?;
-            let cur2 = p.cv_sse(&sub, &w2)?;
-            let Some(ev) = evidence(p, &base, &sub, &w2, &cur2, m, t_crit) else {
-                continue;
-            };
-            evs.push(ev);
+        for t in tested {
+            evs.extend(t?);
         }
         let passes = |e: &Evidence| {
             e.t_stat > e.t_crit
@@ -361,7 +375,7 @@ fn joint_test(cur: &[Vec<f64>], new: &[Vec<f64>], j: usize) -> (f64, f64) {
 fn evidence(
     p: &Problem,
     terms: &[Term],
-    subset: &[usize],
+    (subset, prefixes): (&[usize], &[Prefix]),
     w: &[f64],
     cur: &[Vec<f64>],
     c: Term,
@@ -371,7 +385,7 @@ fn evidence(
     let mut with = terms.to_vec();
     with.push(c);
     let sub2 = p.subset(&with);
-    let new = p.cv_sse(&sub2, w).ok()?;
+    let new = p.cv_sse_from(Some(prefixes), &sub2, w).ok()?;
     // Test on per-block log ratios of the candidate joint's held-out error: scale-free, so
     // blocks where the effect's signature is weak (few velocity reversals, small
     // excursions) do not drown the consistent improvement elsewhere. The joint's own
