@@ -77,6 +77,8 @@ pub use scan::{
 };
 pub use select::{select, Evidence, Rules, Selection, Step};
 
+use rayon::prelude::*;
+
 use crate::arms::ArmSource;
 use crate::derivative;
 use crate::effects::{EffectsSpec, Term};
@@ -301,25 +303,24 @@ pub fn leave_one_out(
     for t in &files {
         check_dof(t, &base)?;
     }
+    // Every fold's scan starts from each of its files prepared at the given (or spectral)
+    // cut-off: prepared once here, then the folds run in parallel, each with its own copy.
     let mut cache = PrepCache::default();
-    let mut out = Vec::new();
-    for k in 0..files.len() {
-        let train: Vec<Log> = files
-            .iter()
-            .enumerate()
-            .filter(|(i, _)| *i != k)
-            .map(|(_, p)| p.clone())
-            .collect();
-        out.push(scan_and_run(
-            arm,
-            &base,
-            &train,
-            Some(&files[k]),
-            cfg,
-            &mut cache,
-        )?);
-    }
-    Ok(out)
+    cache.get_all(&files, cfg, cfg.derivative.cutoff_hz, Smoothing::default())?;
+    let folds: Vec<Result<Outcome, IdentifyError>> = (0..files.len())
+        .into_par_iter()
+        .map(|k| {
+            let train: Vec<Log> = files
+                .iter()
+                .enumerate()
+                .filter(|(i, _)| *i != k)
+                .map(|(_, p)| p.clone())
+                .collect();
+            let mut cache = cache.clone();
+            scan_and_run(arm, &base, &train, Some(&files[k]), cfg, &mut cache)
+        })
+        .collect();
+    folds.into_iter().collect()
 }
 
 /// Validation errors pooled over a leave-one-out study's validation files (`‖τ̂−τ‖/‖τ‖` over

@@ -24,8 +24,9 @@ pub(super) struct Predicted {
     lo: usize,
     hi: usize,
     pred: Vec<Vec<Vec<f64>>>,
-    /// The window's estimated states.
-    states: States,
+    /// The window's estimated states (`None` when the rows came from the file's
+    /// [`super::rows::RowTable`]).
+    states: Option<States>,
 }
 
 impl Predicted {
@@ -53,6 +54,21 @@ impl Predicted {
             .iter()
             .map(|&u| if u { vec![vec![0.0; w]; n] } else { Vec::new() })
             .collect();
+        if let Some(table) = &p.rows {
+            for k in lo..hi {
+                for (set, out) in coefs.iter().zip(pred.iter_mut()) {
+                    for (j, o) in out.iter_mut().enumerate() {
+                        o[k - lo] = ls::dot(table.row(j, k), &set[j]);
+                    }
+                }
+            }
+            return Predicted {
+                lo,
+                hi,
+                pred,
+                states: None,
+            };
+        }
         let mut buf = vec![0.0; n * nc];
         let mut row: Vec<Vec<f64>> = active.iter().map(|a| vec![0.0; a.len()]).collect();
         let states = p.states(lo, hi);
@@ -73,7 +89,7 @@ impl Predicted {
             lo,
             hi,
             pred,
-            states,
+            states: Some(states),
         }
     }
 
@@ -198,7 +214,11 @@ pub(super) fn for_predictions(
         }
         raw_in_core(p, core, stride, |_, t, tau, (k, s)| {
             for j in 0..n {
-                let (d, i) = (&pc.states.dq[j], k - pc.lo);
+                let st = pc
+                    .states
+                    .as_ref()
+                    .expect("predictions of a file without a row table");
+                let (d, i) = (&st.dq[j], k - pc.lo);
                 dq[j] = if s > 0.0 {
                     d[i] + s * (d[i + 1] - d[i])
                 } else {

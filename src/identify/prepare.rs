@@ -3,8 +3,11 @@
 //! by window ([`cores`], [`raw_cores`], [`raw_in_core`]) as each later pass needs them, never for
 //! the whole log; [`PrepCache`] keeps prepared files per cut-off for scans and studies.
 
+use std::sync::Arc;
+
 use serde::Serialize;
 
+use super::rows::RowTable;
 use super::{Config, IdentifyError, MIN_SAMPLES};
 use crate::derivative::{self, Estimator, Filter, States};
 use crate::log::Log;
@@ -26,6 +29,9 @@ pub struct Prepared {
     pub rfilter: Filter,
     pub rfilter_hz: f64,
     pub smoothing: Smoothing,
+    /// The unfiltered regression rows of the whole grid, when kept (the cut-off scan's, see
+    /// [`RowTable`]); otherwise each pass evaluates them from the states.
+    pub(super) rows: Option<Arc<RowTable>>,
 }
 
 /// How the regression rows are filtered and how a model predicts the measured torque; chosen
@@ -159,6 +165,7 @@ impl Prepared {
             rfilter,
             rfilter_hz: fr,
             smoothing,
+            rows: None,
         })
     }
 
@@ -194,7 +201,7 @@ impl Prepared {
 }
 
 /// Prepared files per (file, cut-off), so cut-off scans and leave-one-out studies reuse them.
-#[derive(Debug, Default)]
+#[derive(Debug, Default, Clone)]
 pub struct PrepCache {
     map: Vec<((usize, usize), u64, Prepared)>,
 }

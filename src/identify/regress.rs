@@ -38,21 +38,33 @@ impl Chunk {
         let reach = p.rfilter.as_zero_phase().reach();
         let (lo, hi) = (a.saturating_sub(reach), (b + reach).min(p.est.grid.n));
         let w = hi - lo;
-        let st = p.states(lo, hi);
         let tau = p.grid_tau(lo, hi);
         let mut cols: Vec<Vec<f64>> = active
             .iter()
             .map(|a| vec![0.0; (a.len() + 1) * w])
             .collect();
-        let mut buf = vec![0.0; n * nc];
-        for k in lo..hi {
-            rows.fill_grid(&st, k, &mut buf);
-            for j in 0..n {
-                for (l, &c) in active[j].iter().enumerate() {
-                    cols[j][l * w + (k - lo)] = buf[j * nc + c];
+        if let Some(table) = &p.rows {
+            for k in lo..hi {
+                for (j, cj) in cols.iter_mut().enumerate() {
+                    for (l, &v) in table.row(j, k).iter().enumerate() {
+                        cj[l * w + (k - lo)] = v;
+                    }
                 }
-                cols[j][active[j].len() * w + (k - lo)] = tau[j][k - lo];
             }
+        } else {
+            let st = p.states(lo, hi);
+            let mut buf = vec![0.0; n * nc];
+            for k in lo..hi {
+                rows.fill_grid(&st, k, &mut buf);
+                for j in 0..n {
+                    for (l, &c) in active[j].iter().enumerate() {
+                        cols[j][l * w + (k - lo)] = buf[j * nc + c];
+                    }
+                }
+            }
+        }
+        for (j, cj) in cols.iter_mut().enumerate() {
+            cj[active[j].len() * w..].copy_from_slice(&tau[j]);
         }
         Chunk { lo, hi, cols }
     }

@@ -2,9 +2,12 @@
 //! columns from the first-stage model's torque ([`Rows`]). Used by the regression and by every
 //! prediction.
 
+use rayon::prelude::*;
+
 use super::base::{self, BaseModel};
 use super::layout::Layout;
 use super::ls;
+use super::prepare::{cores, Prepared};
 use crate::derivative::States;
 
 /// Fills regression rows for one state: `out[j * ncols + c]`.
@@ -78,5 +81,73 @@ impl<'a> Rows<'a> {
                 t.effect
                     .column(q[j], dq[j], ddq[j], tau, &self.layout.scales[j]);
         }
+    }
+}
+
+/// A file's unfiltered regression rows on its whole grid, per joint its active columns
+/// (`rows[j][k · a_j + l]` for joint `j`'s `l`-th active column at grid sample `k`): evaluated
+/// once per cut-off and read by every pass the cut-off scan makes over them (the fits with both
+/// regression filters and their predictions), where each pass evaluated the regressor anew.
+#[derive(Debug)]
+pub(super) struct RowTable {
+    widths: Vec<usize>,
+    rows: Vec<Vec<f64>>,
+}
+
+/// Largest [`RowTable`]s the cut-off scan keeps (bytes, all files of one cut-off): beyond it the
+/// passes evaluate the rows themselves (memory stays bounded whatever the arm).
+pub(super) const ROW_TABLE_BYTES: usize = 48 << 20;
+
+impl RowTable {
+    /// Bytes of the table of `p` with `layout`'s active columns.
+    pub(super) fn bytes(p: &Prepared, layout: &Layout) -> usize {
+        let width: usize = (0..layout.dof).map(|j| layout.active(j).len()).sum();
+        p.est.grid.n * width * std::mem::size_of::<f64>()
+    }
+
+    /// The rows of `p`'s whole grid (chunks in parallel, each from its own window of states).
+    pub(super) fn new(p: &Prepared, base: &BaseModel, layout: &Layout) -> RowTable {
+        let n = layout.dof;
+        let active: Vec<Vec<usize>> = (0..n).map(|j| layout.active(j)).collect();
+        let widths: Vec<usize> = active.iter().map(Vec::len).collect();
+        let nc = layout.ncols();
+        let parts: Vec<Vec<Vec<f64>>> = cores(p, 0, p.est.grid.n)
+            .par_iter()
+            .map(|&(a, b)| {
+                let mut rows = Rows::new(base, layout);
+                let st = p.states(a, b);
+                let mut buf = vec![0.0; n * nc];
+                let mut out: Vec<Vec<f64>> = widths
+                    .iter()
+                    .map(|w| Vec::with_capacity(w * (b - a)))
+                    .collect();
+                for k in a..b {
+                    rows.fill_grid(&st, k, &mut buf);
+                    for (j, o) in out.iter_mut().enumerate() {
+                        o.extend(active[j].iter().map(|&c| buf[j * nc + c]));
+                    }
+                }
+                out
+            })
+            .collect();
+        let mut table: Vec<Vec<f64>> = widths
+            .iter()
+            .map(|w| Vec::with_capacity(w * p.est.grid.n))
+            .collect();
+        for part in parts {
+            for (t, o) in table.iter_mut().zip(part) {
+                t.extend(o);
+            }
+        }
+        RowTable {
+            widths,
+            rows: table,
+        }
+    }
+
+    /// Joint `j`'s active columns at grid sample `k`.
+    pub(super) fn row(&self, j: usize, k: usize) -> &[f64] {
+        let w = self.widths[j];
+        &self.rows[j][k * w..(k + 1) * w]
     }
 }

@@ -4,6 +4,7 @@
 //! ([`scan_pieces`]).
 
 use std::f64::consts::SQRT_2;
+use std::sync::Arc;
 
 use rayon::prelude::*;
 use serde::Serialize;
@@ -13,6 +14,7 @@ use super::layout::make_layout;
 use super::load_stage::LoadModel;
 use super::prepare::{PrepCache, Prepared, Smoothing};
 use super::problem::Problem;
+use super::rows::{RowTable, ROW_TABLE_BYTES};
 use super::{Config, IdentifyError, MIN_SAMPLES};
 use crate::effects::Term;
 use crate::log::Log;
@@ -138,66 +140,80 @@ pub fn choose_cutoff(
     }
     let scan_files = scan_pieces(train);
     let all: Vec<Term> = layout.terms.clone();
-    // One cut-off and regression ratio: both predictions judged on one problem.
-    let trial = |fc: f64, ratio: f64| -> Result<Vec<CutoffTrial>, IdentifyError> {
-        let sm = Smoothing {
+    // One cut-off: each regression ratio's problem, both predictions judged on it; the rows are
+    // evaluated once for all of them when they fit in [`ROW_TABLE_BYTES`].
+    let trial = |fc: f64| -> Result<Vec<CutoffTrial>, IdentifyError> {
+        let sm = |ratio| Smoothing {
             regression_ratio: ratio,
             filtered_prediction: false,
         };
         // Not cached: one cut-off's estimates at a time per thread (memory stays that of one
         // copy per core).
-        let preps: Vec<Prepared> = scan_files
-            .iter()
-            .map(|t| Prepared::with_cutoff(t.clone(), cfg, Some(fc), sm, Some(edge_fc)))
-            .collect::<Result<_, _>>()?;
-        let problem = Problem::build(base, layout.clone(), &preps, cfg.blocks);
-        let subset = problem.independent(&problem.subset(&all));
-        let Ok(w) = problem.weights(&subset) else {
-            return Ok(Vec::new());
+        let prepare = |ratio| -> Result<Vec<Prepared>, IdentifyError> {
+            scan_files
+                .iter()
+                .map(|t| Prepared::with_cutoff(t.clone(), cfg, Some(fc), sm(ratio), Some(edge_fc)))
+                .collect()
         };
-        let errors: Vec<(bool, f64)> = match modes[..] {
-            [filtered] => {
-                let mut preps = preps;
-                for p in &mut preps {
-                    p.smoothing.filtered_prediction = filtered;
-                }
-                problem
-                    .cv_raw(base, &preps, &subset, &w)
-                    .map(|e| vec![(filtered, e)])
+        let mut tables: Option<Vec<Arc<RowTable>>> = None;
+        let mut out = Vec::new();
+        for &ratio in &ratios {
+            let mut preps = prepare(ratio)?;
+            if tables.is_none() {
+                let bytes: usize = preps.iter().map(|p| RowTable::bytes(p, &layout)).sum();
+                tables = (bytes <= ROW_TABLE_BYTES).then(|| {
+                    preps
+                        .iter()
+                        .map(|p| Arc::new(RowTable::new(p, base, &layout)))
+                        .collect()
+                });
             }
-            _ => problem
-                .cv_raw_both(base, &preps, &subset, &w)
-                .map(|(s, f)| vec![(false, s), (true, f)]),
-        }
-        .unwrap_or_default();
-        Ok(errors
-            .into_iter()
-            .map(|(filtered, e)| CutoffTrial {
+            if let Some(t) = &tables {
+                for (p, t) in preps.iter_mut().zip(t) {
+                    p.rows = Some(Arc::clone(t));
+                }
+            }
+            let problem = Problem::build(base, layout.clone(), &preps, cfg.blocks);
+            let subset = problem.independent(&problem.subset(&all));
+            let Ok(w) = problem.weights(&subset) else {
+                continue;
+            };
+            let errors: Vec<(bool, f64)> = match modes[..] {
+                [filtered] => {
+                    for p in &mut preps {
+                        p.smoothing.filtered_prediction = filtered;
+                    }
+                    problem
+                        .cv_raw(base, &preps, &subset, &w)
+                        .map(|e| vec![(filtered, e)])
+                }
+                _ => problem
+                    .cv_raw_both(base, &preps, &subset, &w)
+                    .map(|(s, f)| vec![(false, s), (true, f)]),
+            }
+            .unwrap_or_default();
+            out.extend(errors.into_iter().map(|(filtered, e)| CutoffTrial {
                 cutoff_hz: fc,
                 smoothing: Smoothing {
                     filtered_prediction: filtered,
-                    ..sm
+                    ..sm(ratio)
                 },
                 heldout_error: e,
-            })
-            .collect())
+            }));
+        }
+        Ok(out)
     };
-    // The trials of several cut-offs and ratios in parallel, in order.
-    let run = |points: Vec<(f64, f64)>| -> Result<Vec<CutoffTrial>, IdentifyError> {
+    // The cut-offs in parallel, their trials in order.
+    let run = |fcs: &[f64]| -> Result<Vec<CutoffTrial>, IdentifyError> {
         let done: Vec<Result<Vec<CutoffTrial>, IdentifyError>> =
-            points.par_iter().map(|&(fc, r)| trial(fc, r)).collect();
+            fcs.par_iter().map(|&fc| trial(fc)).collect();
         let mut out = Vec::new();
         for d in done {
             out.extend(d?);
         }
         Ok(out)
     };
-    let points = |fcs: &[f64]| -> Vec<(f64, f64)> {
-        fcs.iter()
-            .flat_map(|&fc| ratios.iter().map(move |&r| (fc, r)))
-            .collect()
-    };
-    let mut trials = run(points(&grid))?;
+    let mut trials = run(&grid)?;
     // Half a step either side of the coarse grid's best.
     if grid.len() > 1 {
         if let Some(best) = best_trial(&trials).map(|b| b.cutoff_hz) {
@@ -206,7 +222,7 @@ pub fn choose_cutoff(
                 .into_iter()
                 .filter(|fc| (lo..=hi).contains(fc))
                 .collect();
-            trials.extend(run(points(&near))?);
+            trials.extend(run(&near)?);
         }
     }
     let choice = best_trial(&trials).map_or(fallback, |b| FilterChoice {
@@ -300,6 +316,49 @@ mod tests {
         // No proposal (flat spectrum): still the range.
         assert!(cutoff_grid(f64::NAN, 1000.0).len() >= 8);
         assert!(cutoff_grid(5.0, f64::NAN).is_empty());
+    }
+
+    #[test]
+    fn a_row_table_gives_the_fits_and_errors_of_rows_evaluated_pass_by_pass() {
+        use crate::effects::Effect;
+        use crate::identify::synth::{generate, Spec};
+        let arm = crate::arms::resolve("planar2").unwrap();
+        let table = arm.dh_table().unwrap();
+        let mut spec = Spec::new(table.clone(), 5).with_effect(Effect::Coulomb, 0, 0.8);
+        spec.duration = 12.0;
+        spec.jitter = 0.1;
+        let log = Log::from(generate(&spec));
+        let base = BaseModel::for_arm(&arm);
+        let cfg = Config::default();
+        let sm = Smoothing {
+            regression_ratio: 0.5,
+            filtered_prediction: false,
+        };
+        let plain = vec![Prepared::with_cutoff(log, &cfg, Some(6.0), sm, None).unwrap()];
+        let layout = make_layout(&base, Some(&table), &plain, &cfg).0;
+        let mut tabled = plain.clone();
+        tabled[0].rows = Some(Arc::new(RowTable::new(&plain[0], &base, &layout)));
+        let judge = |preps: &[Prepared]| {
+            let p = Problem::build(&base, layout.clone(), preps, cfg.blocks);
+            let subset = p.subset(&layout.terms);
+            let w = p.weights(&subset).unwrap();
+            let x = p.fit(&subset, &w).unwrap().x;
+            let (s, f) = p.cv_raw_both(&base, preps, &subset, &w).unwrap();
+            (x, s, f)
+        };
+        let (a, b) = (judge(&plain), judge(&tabled));
+        // The table's rows come from windows of states over other margins: equal to ~1e-7 of
+        // the signal (estimator.rs), so fits and errors agree far below anything reported.
+        let close = |u: f64, v: f64| (u - v).abs() <= 1e-7 * u.abs().max(v.abs()).max(1e-12);
+        assert!(
+            a.0.iter().zip(&b.0).all(|(u, v)| close(*u, *v)),
+            "{:?} {:?}",
+            a.0,
+            b.0
+        );
+        assert!(close(a.1, b.1) && close(a.2, b.2), "{a:?} {b:?}");
+        // And the filtered prediction is not the states' one (the two passes differ).
+        assert!((a.1 - a.2).abs() > 1e-6 * a.1, "{a:?}");
     }
 
     #[test]
