@@ -10,7 +10,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::base::BaseModel;
-use super::layout::make_layout;
+use super::layout::{make_layout, Layout};
 use super::load_stage::LoadModel;
 use super::prepare::{PrepCache, Prepared, Smoothing};
 use super::problem::Problem;
@@ -140,9 +140,65 @@ pub fn choose_cutoff(
     }
     let scan_files = scan_pieces(train);
     let all: Vec<Term> = layout.terms.clone();
-    // One cut-off: each regression ratio's problem, both predictions judged on it; the rows are
-    // evaluated once for all of them when they fit in [`ROW_TABLE_BYTES`].
-    let trial = |fc: f64| -> Result<Vec<CutoffTrial>, IdentifyError> {
+    let scan = Scan {
+        base,
+        layout: &layout,
+        files: &scan_files,
+        cfg,
+        edge_fc,
+        all: &all,
+        ratios: &ratios,
+        modes: &modes,
+    };
+    let mut trials = scan.run(&grid)?;
+    // Half a step either side of the coarse grid's best.
+    if grid.len() > 1 {
+        if let Some(best) = best_trial(&trials).map(|b| b.cutoff_hz) {
+            let (lo, hi) = (grid[0], grid[grid.len() - 1]);
+            let near: Vec<f64> = [best / SQRT_2, best * SQRT_2]
+                .into_iter()
+                .filter(|fc| (lo..=hi).contains(fc))
+                .collect();
+            trials.extend(scan.run(&near)?);
+        }
+    }
+    let choice = best_trial(&trials).map_or(fallback, |b| FilterChoice {
+        cutoff_hz: Some(b.cutoff_hz),
+        smoothing: b.smoothing,
+    });
+    trials.sort_by(|a, b| a.cutoff_hz.total_cmp(&b.cutoff_hz));
+    Ok((choice, trials))
+}
+
+/// What every trial of one scan shares.
+struct Scan<'a> {
+    base: &'a BaseModel,
+    layout: &'a Layout,
+    files: &'a [Log],
+    cfg: &'a Config,
+    edge_fc: f64,
+    /// Every candidate term (the scan's models fit all that the data tell apart).
+    all: &'a [Term],
+    ratios: &'a [f64],
+    /// Predictions judged: from the filtered rows or not.
+    modes: &'a [bool],
+}
+
+impl Scan<'_> {
+    /// The trials of cut-offs `fcs`, in parallel, in order.
+    fn run(&self, fcs: &[f64]) -> Result<Vec<CutoffTrial>, IdentifyError> {
+        let done: Vec<Result<Vec<CutoffTrial>, IdentifyError>> =
+            fcs.par_iter().map(|&fc| self.cutoff(fc)).collect();
+        let mut out = Vec::new();
+        for d in done {
+            out.extend(d?);
+        }
+        Ok(out)
+    }
+
+    /// One cut-off: each regression ratio's problem, both predictions judged on it; the rows are
+    /// evaluated once for all of them when they fit in [`ROW_TABLE_BYTES`].
+    fn cutoff(&self, fc: f64) -> Result<Vec<CutoffTrial>, IdentifyError> {
         let sm = |ratio| Smoothing {
             regression_ratio: ratio,
             filtered_prediction: false,
@@ -150,21 +206,29 @@ pub fn choose_cutoff(
         // Not cached: one cut-off's estimates at a time per thread (memory stays that of one
         // copy per core).
         let prepare = |ratio| -> Result<Vec<Prepared>, IdentifyError> {
-            scan_files
+            self.files
                 .iter()
-                .map(|t| Prepared::with_cutoff(t.clone(), cfg, Some(fc), sm(ratio), Some(edge_fc)))
+                .map(|t| {
+                    Prepared::with_cutoff(
+                        t.clone(),
+                        self.cfg,
+                        Some(fc),
+                        sm(ratio),
+                        Some(self.edge_fc),
+                    )
+                })
                 .collect()
         };
         let mut tables: Option<Vec<Arc<RowTable>>> = None;
         let mut out = Vec::new();
-        for &ratio in &ratios {
+        for &ratio in self.ratios {
             let mut preps = prepare(ratio)?;
             if tables.is_none() {
-                let bytes: usize = preps.iter().map(|p| RowTable::bytes(p, &layout)).sum();
+                let bytes: usize = preps.iter().map(|p| RowTable::bytes(p, self.layout)).sum();
                 tables = (bytes <= ROW_TABLE_BYTES).then(|| {
                     preps
                         .iter()
-                        .map(|p| Arc::new(RowTable::new(p, base, &layout)))
+                        .map(|p| Arc::new(RowTable::new(p, self.base, self.layout)))
                         .collect()
                 });
             }
@@ -173,22 +237,22 @@ pub fn choose_cutoff(
                     p.rows = Some(Arc::clone(t));
                 }
             }
-            let problem = Problem::build(base, layout.clone(), &preps, cfg.blocks);
-            let subset = problem.independent(&problem.subset(&all));
+            let problem = Problem::build(self.base, self.layout.clone(), &preps, self.cfg.blocks);
+            let subset = problem.independent(&problem.subset(self.all));
             let Ok(w) = problem.weights(&subset) else {
                 continue;
             };
-            let errors: Vec<(bool, f64)> = match modes[..] {
+            let errors: Vec<(bool, f64)> = match self.modes[..] {
                 [filtered] => {
                     for p in &mut preps {
                         p.smoothing.filtered_prediction = filtered;
                     }
                     problem
-                        .cv_raw(base, &preps, &subset, &w)
+                        .cv_raw(self.base, &preps, &subset, &w)
                         .map(|e| vec![(filtered, e)])
                 }
                 _ => problem
-                    .cv_raw_both(base, &preps, &subset, &w)
+                    .cv_raw_both(self.base, &preps, &subset, &w)
                     .map(|(s, f)| vec![(false, s), (true, f)]),
             }
             .unwrap_or_default();
@@ -202,35 +266,7 @@ pub fn choose_cutoff(
             }));
         }
         Ok(out)
-    };
-    // The cut-offs in parallel, their trials in order.
-    let run = |fcs: &[f64]| -> Result<Vec<CutoffTrial>, IdentifyError> {
-        let done: Vec<Result<Vec<CutoffTrial>, IdentifyError>> =
-            fcs.par_iter().map(|&fc| trial(fc)).collect();
-        let mut out = Vec::new();
-        for d in done {
-            out.extend(d?);
-        }
-        Ok(out)
-    };
-    let mut trials = run(&grid)?;
-    // Half a step either side of the coarse grid's best.
-    if grid.len() > 1 {
-        if let Some(best) = best_trial(&trials).map(|b| b.cutoff_hz) {
-            let (lo, hi) = (grid[0], grid[grid.len() - 1]);
-            let near: Vec<f64> = [best / SQRT_2, best * SQRT_2]
-                .into_iter()
-                .filter(|fc| (lo..=hi).contains(fc))
-                .collect();
-            trials.extend(run(&near)?);
-        }
     }
-    let choice = best_trial(&trials).map_or(fallback, |b| FilterChoice {
-        cutoff_hz: Some(b.cutoff_hz),
-        smoothing: b.smoothing,
-    });
-    trials.sort_by(|a, b| a.cutoff_hz.total_cmp(&b.cutoff_hz));
-    Ok((choice, trials))
 }
 
 /// Lowest derivative cut-off the scan tries (Hz), unless the spectrum proposes less: robot
