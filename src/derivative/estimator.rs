@@ -1,7 +1,7 @@
 //! The streaming estimator: set up once per file (sampling, grid, cut-off, filter), then run
 //! window by window.
 
-use super::{DerivativeReport, Filter, Options, States, SPECTRUM_PIECES, SPECTRUM_WHOLE};
+use super::{DerivativeReport, Filter, Method, Options, States, SPECTRUM_PIECES, SPECTRUM_WHOLE};
 use crate::data::Trajectory;
 use crate::log::Log;
 use crate::signal::{
@@ -91,6 +91,26 @@ impl Estimator {
             report,
             use_dq,
             given,
+        })
+    }
+
+    /// This estimator with the given cut-off (`method`'s filter): what [`Estimator::new`] with
+    /// `cutoff_hz: Some(fc)` returns for the same log, without reading the log again (the
+    /// sampling, grid and checks do not depend on the cut-off).
+    pub fn with_cutoff(&self, method: Method, fc: f64) -> Result<Self, DerivativeError> {
+        let filter = Filter::lowpass(method, fc, self.report.fs_hz)?;
+        let mut report = self.report.clone();
+        report.method = method;
+        report.filter = filter.as_zero_phase().describe();
+        report.cutoff_hz = fc;
+        report.cutoff_auto = false;
+        report.per_channel = Vec::new();
+        Ok(Estimator {
+            grid: self.grid,
+            filter,
+            report,
+            use_dq: self.use_dq,
+            given: self.given,
         })
     }
 

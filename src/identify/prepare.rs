@@ -142,6 +142,41 @@ impl Prepared {
             ..cfg.derivative
         };
         let est = Estimator::new(&log, cfg.file_velocity, &opts).map_err(derr)?;
+        Self::from_estimator(log, est, cfg, smoothing, edge_fc)
+    }
+
+    /// This file prepared at another cut-off `fc` (with `smoothing`, edges as for `edge_fc`):
+    /// [`Prepared::with_cutoff`] of the same log, without reading it again.
+    pub(super) fn at_cutoff(
+        &self,
+        cfg: &Config,
+        fc: f64,
+        smoothing: Smoothing,
+        edge_fc: Option<f64>,
+    ) -> Result<Self, IdentifyError> {
+        let est = self
+            .est
+            .with_cutoff(cfg.derivative.method, fc)
+            .map_err(|source| IdentifyError::Derivative {
+                file: self.name.clone(),
+                source,
+            })?;
+        Self::from_estimator(self.log.clone(), est, cfg, smoothing, edge_fc)
+    }
+
+    /// The regression filter and kept ranges of `log` with its estimator `est`.
+    fn from_estimator(
+        log: Log,
+        est: Estimator,
+        cfg: &Config,
+        smoothing: Smoothing,
+        edge_fc: Option<f64>,
+    ) -> Result<Self, IdentifyError> {
+        let name = log.source.clone();
+        let derr = |source| IdentifyError::Derivative {
+            file: name.clone(),
+            source,
+        };
         let g = est.grid;
         let ratio = smoothing.regression_ratio;
         let fr = est.report.cutoff_hz * ratio;

@@ -138,7 +138,11 @@ pub fn choose_cutoff(
         layout.load = lm.coefs.clone();
         layout.load.resize(layout.ncols(), 0.0);
     }
-    let scan_files = scan_pieces(train);
+    let scan_files: Vec<Result<Prepared, IdentifyError>> = scan_pieces(train)
+        .into_par_iter()
+        .map(|t| Prepared::with_cutoff(t, cfg, Some(lowest), Smoothing::default(), None))
+        .collect();
+    let scan_files: Vec<Prepared> = scan_files.into_iter().collect::<Result<_, _>>()?;
     let all: Vec<Term> = layout.terms.clone();
     let scan = Scan {
         base,
@@ -174,7 +178,8 @@ pub fn choose_cutoff(
 struct Scan<'a> {
     base: &'a BaseModel,
     layout: &'a Layout,
-    files: &'a [Log],
+    /// The files scanned, prepared once (each trial re-filters them at its cut-off).
+    files: &'a [Prepared],
     cfg: &'a Config,
     edge_fc: f64,
     /// Every candidate term (the scan's models fit all that the data tell apart).
@@ -208,15 +213,7 @@ impl Scan<'_> {
         let prepare = |ratio| -> Result<Vec<Prepared>, IdentifyError> {
             self.files
                 .iter()
-                .map(|t| {
-                    Prepared::with_cutoff(
-                        t.clone(),
-                        self.cfg,
-                        Some(fc),
-                        sm(ratio),
-                        Some(self.edge_fc),
-                    )
-                })
+                .map(|f| f.at_cutoff(self.cfg, fc, sm(ratio), Some(self.edge_fc)))
                 .collect()
         };
         let mut tables: Option<Vec<Arc<RowTable>>> = None;
