@@ -261,7 +261,16 @@ impl PrepCache {
             p.smoothing = sm;
             return Ok(p);
         }
-        let p = Prepared::with_cutoff(t.clone(), cfg, fc, sm, edge_fc)?;
+        // A given cut-off of a file prepared before: its estimator, re-filtered (the log is not
+        // read again).
+        let known = self
+            .map
+            .iter()
+            .find(|(a, _, p)| *a == key.0 && p.log.len() == t.len());
+        let p = match (fc, known) {
+            (Some(fc), Some((_, _, p))) => p.at_cutoff(cfg, fc, sm, edge_fc)?,
+            _ => Prepared::with_cutoff(t.clone(), cfg, fc, sm, edge_fc)?,
+        };
         self.map.push((key.0, key.1, p.clone()));
         Ok(p)
     }
