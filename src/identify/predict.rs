@@ -4,6 +4,8 @@
 
 use std::sync::Arc;
 
+use rayon::prelude::*;
+
 use super::base::BaseModel;
 use super::evaluate::ModelResult;
 use super::layout::Layout;
@@ -181,9 +183,10 @@ impl Predictions {
     }
 }
 
-/// Calls `f(t, dq, tau, preds)` for every `stride`-th used raw sample of `p`, with the
+/// Calls `f(t, dq, tau, preds)` for every `stride`-th used raw sample of `p`, in order, with the
 /// predictions of each model (see [`Predicted`]; `preds[m]` per joint), the estimated q̇ at the
-/// sample and its measured τ.
+/// sample and its measured τ. Chunks are predicted in parallel, a few at a time (memory stays
+/// that of a few chunks whatever the log's length).
 pub(super) fn for_predictions(
     base: &BaseModel,
     layout: &Layout,
@@ -193,6 +196,7 @@ pub(super) fn for_predictions(
     mut f: impl FnMut(f64, &[f64], &[f64], &[Vec<f64>]),
 ) {
     let n = layout.dof;
+    let nm = models.len();
     let active: Vec<Vec<usize>> = (0..n).map(|j| layout.active(j)).collect();
     let coef: Vec<Vec<Vec<f64>>> = models
         .iter()
@@ -202,34 +206,53 @@ pub(super) fn for_predictions(
                 .collect()
         })
         .collect();
-    let wanted = vec![true; models.len()];
-    let mut rows = Rows::new(base, layout);
-    let mut dq = vec![0.0; n];
-    let mut preds = vec![vec![0.0; n]; models.len()];
-    for core in raw_cores(p) {
+    let wanted = vec![true; nm];
+    // One sample: t, q̇ (n), τ (n), then each model's prediction (n each).
+    let width = 1 + 2 * n + nm * n;
+    let chunk = |core: (usize, usize)| -> Vec<f64> {
+        let mut rows = Rows::new(base, layout);
         let filtered = p.smoothing.filtered_prediction;
         let mut pc = Predicted::new(p, &mut rows, &active, core, &coef, &wanted, filtered);
         if filtered {
             pc.filter(p);
         }
+        let st = pc
+            .states
+            .as_ref()
+            .expect("predictions of a file without a row table");
+        let mut out = Vec::new();
         raw_in_core(p, core, stride, |_, t, tau, (k, s)| {
-            for j in 0..n {
-                let st = pc
-                    .states
-                    .as_ref()
-                    .expect("predictions of a file without a row table");
-                let (d, i) = (&st.dq[j], k - pc.lo);
-                dq[j] = if s > 0.0 {
+            out.push(t);
+            let i = k - pc.lo;
+            for d in &st.dq[..n] {
+                out.push(if s > 0.0 {
                     d[i] + s * (d[i + 1] - d[i])
                 } else {
                     d[i]
-                };
-                for (m, pm) in preds.iter_mut().enumerate() {
-                    pm[j] = pc.at(m, j, (k, s));
-                }
+                });
             }
-            f(t, &dq, tau, &preds);
+            out.extend_from_slice(tau);
+            for m in 0..nm {
+                out.extend((0..n).map(|j| pc.at(m, j, (k, s))));
+            }
         });
+        out
+    };
+    let mut preds = vec![vec![0.0; n]; nm];
+    for batch in raw_cores(p).chunks(2 * rayon::current_num_threads()) {
+        let done: Vec<Vec<f64>> = batch.par_iter().map(|&c| chunk(c)).collect();
+        for sample in done.iter().flat_map(|d| d.chunks_exact(width)) {
+            for (m, pm) in preds.iter_mut().enumerate() {
+                let at = 1 + 2 * n + m * n;
+                pm.copy_from_slice(&sample[at..at + n]);
+            }
+            f(
+                sample[0],
+                &sample[1..1 + n],
+                &sample[1 + n..1 + 2 * n],
+                &preds,
+            );
+        }
     }
 }
 
