@@ -104,29 +104,40 @@ pub(super) fn accumulate_fit(
     let active: Vec<Vec<usize>> = (0..n).map(|j| layout.active(j)).collect();
     let mut rows = Rows::new(base, layout);
     let (k0, k1) = p.keep;
-    for (a, b) in cores(p, k0, k1) {
-        let mut chunk = Chunk::new(p, &mut rows, &active, (a, b));
+    let all = cores(p, k0, k1);
+    // The next chunk's rows are evaluated while this one is filtered and folded in (the folding
+    // stays in order, so the factors are the same bit for bit).
+    let mut next = all.first().map(|&c| Chunk::new(p, &mut rows, &active, c));
+    for (i, &(a, b)) in all.iter().enumerate() {
+        let Some(mut chunk) = next.take() else { break };
         let (lo, hi, w) = (chunk.lo, chunk.hi, chunk.w());
         let keep: Vec<(usize, usize)> = (a..b)
             .filter(|&k| (k - k0) % decim == 0)
             .map(|k| (k, p.block_of(k, nblocks)))
             .collect();
-        chunk
-            .cols
-            .par_iter_mut()
-            .zip(accs.par_iter_mut())
-            .zip(active.par_iter())
-            .for_each(|((cj, acc), act)| {
-                Chunk::filter_joint(p, cj, w, lo, hi);
-                let mut row = vec![0.0; nc + 1];
-                for &(k, blk) in &keep {
-                    for (l, &c) in act.iter().enumerate() {
-                        row[c] = cj[l * w + (k - lo)];
+        let fold = || {
+            chunk
+                .cols
+                .par_iter_mut()
+                .zip(accs.par_iter_mut())
+                .zip(active.par_iter())
+                .for_each(|((cj, acc), act)| {
+                    Chunk::filter_joint(p, cj, w, lo, hi);
+                    let mut row = vec![0.0; nc + 1];
+                    for &(k, blk) in &keep {
+                        for (l, &c) in act.iter().enumerate() {
+                            row[c] = cj[l * w + (k - lo)];
+                        }
+                        row[nc] = cj[act.len() * w + (k - lo)];
+                        acc[blk].push(&row);
                     }
-                    row[nc] = cj[act.len() * w + (k - lo)];
-                    acc[blk].push(&row);
-                }
-            });
+                });
+        };
+        let ahead = || {
+            all.get(i + 1)
+                .map(|&c| Chunk::new(p, &mut rows, &active, c))
+        };
+        next = rayon::join(fold, ahead).1;
     }
     finish_transposed(accs, nblocks)
 }
