@@ -79,12 +79,16 @@ pub(super) fn make_layout(
     cfg: &Config,
 ) -> (Layout, Vec<Term>, Vec<Term>, Merged) {
     let n = base.dof();
+    // Every joint's Σ q̇² in one pass over each file's states.
+    let sums: Vec<(Vec<f64>, usize)> = train
+        .iter()
+        .map(|p| p.state_sums(|st, j, i| st.dq[j][i].powi(2)))
+        .collect();
     let scales: Vec<Scales> = (0..n)
         .map(|j| {
-            let (s, c) = train.iter().fold((0.0, 0usize), |(s, c), p| {
-                let (s1, c1) = p.state_sums(|st, i| st.dq[j][i].powi(2));
-                (s + s1, c + c1)
-            });
+            let (s, c) = sums
+                .iter()
+                .fold((0.0, 0usize), |(s, c), (s1, c1)| (s + s1[j], c + c1));
             Scales::from_rms_velocity((s / c.max(1) as f64).sqrt())
         })
         .collect();

@@ -5,6 +5,7 @@
 
 use std::sync::Arc;
 
+use rayon::prelude::*;
 use serde::Serialize;
 
 use super::rows::RowTable;
@@ -220,11 +221,27 @@ impl Prepared {
     }
 
     /// `(Σ f(states, i), count)` over the kept grid samples, window by window.
-    pub(super) fn state_sums(&self, f: impl Fn(&States, usize) -> f64) -> (f64, usize) {
-        let mut s = 0.0;
-        for (a, b) in cores(self, self.keep.0, self.keep.1) {
-            let st = self.states(a, b);
-            s += (0..b - a).map(|i| f(&st, i)).sum::<f64>();
+    /// Per joint `j`, `Σ f(states, j, i)` over the kept grid samples (windows in parallel, their
+    /// sums added in order), and the number of samples.
+    pub(super) fn state_sums(
+        &self,
+        f: impl Fn(&States, usize, usize) -> f64 + Sync,
+    ) -> (Vec<f64>, usize) {
+        let n = self.dof();
+        let parts: Vec<Vec<f64>> = cores(self, self.keep.0, self.keep.1)
+            .par_iter()
+            .map(|&(a, b)| {
+                let st = self.states(a, b);
+                (0..n)
+                    .map(|j| (0..b - a).map(|i| f(&st, j, i)).sum::<f64>())
+                    .collect()
+            })
+            .collect();
+        let mut s = vec![0.0; n];
+        for part in &parts {
+            for (sj, pj) in s.iter_mut().zip(part) {
+                *sj += pj;
+            }
         }
         (s, self.keep.1 - self.keep.0)
     }
