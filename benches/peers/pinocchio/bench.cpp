@@ -316,7 +316,10 @@ int main(int argc, char ** argv)
     timing.target_s = envDouble("PEERS_TARGET_MS", timing.target_s * 1e3) * 1e-3;
     timing.reps = static_cast<int>(envDouble("PEERS_REPS", timing.reps));
     std::printf("# Pinocchio %s (header-only), %s, %s\n", PINOCCHIO_VERSION, PEERS_CXX, PEERS_FLAGS);
-    std::printf("# models and input pool: %s (dynid bench-models)\n", argv[1]);
+    // The file name only: the report is committed, the harness's cache directory is this machine's.
+    const std::string pool = argv[1];
+    std::printf("# models and input pool: %s (dynid bench-models, in the harness's cache)\n",
+                pool.substr(pool.find_last_of('/') + 1).c_str());
     std::printf("# timing: median of %d repetitions of ~%.1f ms, ns per call, single thread\n",
                 timing.reps, timing.target_s * 1e3);
 
