@@ -71,11 +71,10 @@ impl Predicted {
                 states: None,
             };
         }
-        let mut buf = vec![0.0; n * nc];
         let mut row: Vec<Vec<f64>> = active.iter().map(|a| vec![0.0; a.len()]).collect();
         let states = p.states(lo, hi);
         for k in lo..hi {
-            rows.fill_grid(&states, k, &mut buf);
+            let buf = rows.fill_grid(&states, k);
             for (j, rj) in row.iter_mut().enumerate() {
                 for (v, &c) in rj.iter_mut().zip(&active[j]) {
                     *v = buf[j * nc + c];

@@ -53,9 +53,8 @@ impl Chunk {
             }
         } else {
             let st = p.states(lo, hi);
-            let mut buf = vec![0.0; n * nc];
             for k in lo..hi {
-                rows.fill_grid(&st, k, &mut buf);
+                let buf = rows.fill_grid(&st, k);
                 for j in 0..n {
                     for (l, &c) in active[j].iter().enumerate() {
                         cols[j][l * w + (k - lo)] = buf[j * nc + c];

@@ -10,12 +10,16 @@ use super::ls;
 use super::prepare::{cores, Prepared};
 use crate::derivative::States;
 
-/// Fills regression rows for one state: `out[j * ncols + c]`.
+/// Fills regression rows for one state into its own buffer, `row[j * ncols + c]`. A joint's row
+/// holds zeros in the other joints' effect columns: they are never written, so the buffer is
+/// zeroed once, not per state.
 pub(super) struct Rows<'a> {
     base: &'a BaseModel,
     pub(super) layout: &'a Layout,
     scratch: base::Scratch,
     yb: Vec<f64>,
+    /// The rows of the last state.
+    row: Vec<f64>,
     /// State buffers of [`Rows::fill_grid`].
     q: Vec<f64>,
     dq: Vec<f64>,
@@ -29,6 +33,7 @@ impl<'a> Rows<'a> {
             layout,
             scratch: base.scratch(),
             yb: vec![0.0; layout.dof * layout.nb],
+            row: vec![0.0; layout.dof * layout.ncols()],
             q: vec![0.0; layout.dof],
             dq: vec![0.0; layout.dof],
             ddq: vec![0.0; layout.dof],
@@ -36,7 +41,7 @@ impl<'a> Rows<'a> {
     }
 
     /// Rows at grid sample `k` of estimated states `st`.
-    pub(super) fn fill_grid(&mut self, st: &States, k: usize, out: &mut [f64]) {
+    pub(super) fn fill_grid(&mut self, st: &States, k: usize) -> &[f64] {
         let i = k - st.lo;
         for j in 0..self.layout.dof {
             (self.q[j], self.dq[j], self.ddq[j]) = (st.q[j][i], st.dq[j][i], st.ddq[j][i]);
@@ -46,14 +51,15 @@ impl<'a> Rows<'a> {
             std::mem::take(&mut self.dq),
             std::mem::take(&mut self.ddq),
         );
-        self.fill(&q, &dq, &ddq, out);
+        self.fill(&q, &dq, &ddq);
         (self.q, self.dq, self.ddq) = (q, dq, ddq);
+        &self.row
     }
 
-    pub(super) fn fill(&mut self, q: &[f64], dq: &[f64], ddq: &[f64], out: &mut [f64]) {
+    fn fill(&mut self, q: &[f64], dq: &[f64], ddq: &[f64]) {
         let (n, nb, nc) = (self.layout.dof, self.layout.nb, self.layout.ncols());
         self.base.eval(&mut self.scratch, q, dq, ddq, &mut self.yb);
-        out.fill(0.0);
+        let out = &mut self.row;
         for j in 0..n {
             out[j * nc..j * nc + nb].copy_from_slice(&self.yb[j * nb..(j + 1) * nb]);
         }
@@ -116,13 +122,12 @@ impl RowTable {
             .map(|&(a, b)| {
                 let mut rows = Rows::new(base, layout);
                 let st = p.states(a, b);
-                let mut buf = vec![0.0; n * nc];
                 let mut out: Vec<Vec<f64>> = widths
                     .iter()
                     .map(|w| Vec::with_capacity(w * (b - a)))
                     .collect();
                 for k in a..b {
-                    rows.fill_grid(&st, k, &mut buf);
+                    let buf = rows.fill_grid(&st, k);
                     for (j, o) in out.iter_mut().enumerate() {
                         o.extend(active[j].iter().map(|&c| buf[j * nc + c]));
                     }
