@@ -140,6 +140,18 @@ fn windows_equal_the_whole_signal_estimate() {
             let e = Estimator::new(&log, true, &opts).unwrap();
             let n = e.grid.n;
             let whole = e.window(&log, 0, n);
+            // Another cut-off's estimator re-filtered at this one is this one, bit for bit.
+            let three = Options {
+                cutoff_hz: Some(3.0),
+                ..opts
+            };
+            let again = Estimator::new(&log, true, &three)
+                .unwrap()
+                .with_cutoff(method, 6.0)
+                .unwrap();
+            assert_eq!(again.report, e.report);
+            let (a, b) = (again.window(&log, 1234, 4321), e.window(&log, 1234, 4321));
+            assert!(a.q == b.q && a.dq == b.dq && a.ddq == b.ddq);
             for (lo, hi) in [(0, 700), (1234, 4321), (4000, n), (n - 1, n)] {
                 let w = e.window(&log, lo, hi);
                 assert_eq!((w.lo, w.q[1].len()), (lo, hi - lo));

@@ -38,7 +38,6 @@ impl Chunk {
         let reach = p.rfilter.as_zero_phase().reach();
         let (lo, hi) = (a.saturating_sub(reach), (b + reach).min(p.est.grid.n));
         let w = hi - lo;
-        let tau = p.grid_tau(lo, hi);
         let mut cols: Vec<Vec<f64>> = active
             .iter()
             .map(|a| vec![0.0; (a.len() + 1) * w])
@@ -62,8 +61,18 @@ impl Chunk {
                 }
             }
         }
-        for (j, cj) in cols.iter_mut().enumerate() {
-            cj[active[j].len() * w..].copy_from_slice(&tau[j]);
+        match &p.rows {
+            Some(table) => {
+                for (j, cj) in cols.iter_mut().enumerate() {
+                    cj[active[j].len() * w..].copy_from_slice(table.tau(j, lo, hi));
+                }
+            }
+            None => {
+                let tau = p.grid_tau(lo, hi);
+                for (j, cj) in cols.iter_mut().enumerate() {
+                    cj[active[j].len() * w..].copy_from_slice(&tau[j]);
+                }
+            }
         }
         Chunk { lo, hi, cols }
     }

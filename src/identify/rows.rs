@@ -90,7 +90,7 @@ impl<'a> Rows<'a> {
     }
 }
 
-/// A file's unfiltered regression rows on its whole grid, per joint its active columns
+/// A file's unfiltered regression rows (and measured torque) on its whole grid, per joint its active columns
 /// (`rows[j][k · a_j + l]` for joint `j`'s `l`-th active column at grid sample `k`): evaluated
 /// once per cut-off and read by every pass the cut-off scan makes over them (the fits with both
 /// regression filters and their predictions), where each pass evaluated the regressor anew.
@@ -98,6 +98,8 @@ impl<'a> Rows<'a> {
 pub(super) struct RowTable {
     widths: Vec<usize>,
     rows: Vec<Vec<f64>>,
+    /// The measured torque on the grid, per joint.
+    tau: Vec<Vec<f64>>,
 }
 
 /// Largest [`RowTable`]s the cut-off scan keeps (bytes, all files of one cut-off): beyond it the
@@ -105,9 +107,9 @@ pub(super) struct RowTable {
 pub(super) const ROW_TABLE_BYTES: usize = 48 << 20;
 
 impl RowTable {
-    /// Bytes of the table of `p` with `layout`'s active columns.
+    /// Bytes of the table of `p` with `layout`'s active columns (and the torque).
     pub(super) fn bytes(p: &Prepared, layout: &Layout) -> usize {
-        let width: usize = (0..layout.dof).map(|j| layout.active(j).len()).sum();
+        let width: usize = (0..layout.dof).map(|j| layout.active(j).len() + 1).sum();
         p.est.grid.n * width * std::mem::size_of::<f64>()
     }
 
@@ -117,11 +119,12 @@ impl RowTable {
         let active: Vec<Vec<usize>> = (0..n).map(|j| layout.active(j)).collect();
         let widths: Vec<usize> = active.iter().map(Vec::len).collect();
         let nc = layout.ncols();
-        let parts: Vec<Vec<Vec<f64>>> = cores(p, 0, p.est.grid.n)
+        let parts: Vec<(Vec<Vec<f64>>, Vec<Vec<f64>>)> = cores(p, 0, p.est.grid.n)
             .par_iter()
             .map(|&(a, b)| {
                 let mut rows = Rows::new(base, layout);
                 let st = p.states(a, b);
+                let tau = p.grid_tau(a, b);
                 let mut out: Vec<Vec<f64>> = widths
                     .iter()
                     .map(|w| Vec::with_capacity(w * (b - a)))
@@ -132,22 +135,30 @@ impl RowTable {
                         o.extend(active[j].iter().map(|&c| buf[j * nc + c]));
                     }
                 }
-                out
+                (out, tau)
             })
             .collect();
-        let mut table: Vec<Vec<f64>> = widths
-            .iter()
-            .map(|w| Vec::with_capacity(w * p.est.grid.n))
-            .collect();
-        for part in parts {
-            for (t, o) in table.iter_mut().zip(part) {
-                t.extend(o);
+        let g = p.est.grid.n;
+        let mut table: Vec<Vec<f64>> = widths.iter().map(|w| Vec::with_capacity(w * g)).collect();
+        let mut tau: Vec<Vec<f64>> = (0..n).map(|_| Vec::with_capacity(g)).collect();
+        for (part, t) in parts {
+            for (dst, o) in table.iter_mut().zip(part) {
+                dst.extend(o);
+            }
+            for (dst, o) in tau.iter_mut().zip(t) {
+                dst.extend(o);
             }
         }
         RowTable {
             widths,
             rows: table,
+            tau,
         }
+    }
+
+    /// Joint `j`'s measured torque on grid samples `lo..hi`.
+    pub(super) fn tau(&self, j: usize, lo: usize, hi: usize) -> &[f64] {
+        &self.tau[j][lo..hi]
     }
 
     /// Joint `j`'s active columns at grid sample `k`.
