@@ -119,7 +119,9 @@ impl RowTable {
         let active: Vec<Vec<usize>> = (0..n).map(|j| layout.active(j)).collect();
         let widths: Vec<usize> = active.iter().map(Vec::len).collect();
         let nc = layout.ncols();
-        let parts: Vec<(Vec<Vec<f64>>, Vec<Vec<f64>>)> = cores(p, 0, p.est.grid.n)
+        // Per chunk: each joint's rows, each joint's torque.
+        type Part = (Vec<Vec<f64>>, Vec<Vec<f64>>);
+        let parts: Vec<Part> = cores(p, 0, p.est.grid.n)
             .par_iter()
             .map(|&(a, b)| {
                 let mut rows = Rows::new(base, layout);
