@@ -176,7 +176,11 @@ pub fn run(args: &Args) -> Result<()> {
             identify::Smoothing::parse(s).map_err(|e| InputError(format!("--smoothing: {e}")))?,
         ),
     };
+    // On a terminal: the stage and the scan's cut-offs (or the folds) on stderr; nothing elsewhere.
+    let bar = indicatif::ProgressBar::new(0);
+    bar.enable_steady_tick(std::time::Duration::from_millis(200));
     let cfg = Config {
+        progress: identify::Progress::to(bar.clone()),
         smoothing,
         derivative: crate::derivative::Options {
             method: args.derivative.method(),
@@ -207,7 +211,9 @@ pub fn run(args: &Args) -> Result<()> {
             )
             .into());
         }
-        let outs = identify::leave_one_out(&arm, train, &cfg).map_err(bad)?;
+        let outs = identify::leave_one_out(&arm, train, &cfg).map_err(bad);
+        bar.finish_and_clear();
+        let outs = outs?;
         check_warnings(args, &outs.iter().collect::<Vec<_>>())?;
         let table = arm.dh_table().ok();
         let summary =
@@ -217,7 +223,9 @@ pub fn run(args: &Args) -> Result<()> {
         return Ok(());
     }
     let val = args.validate.as_deref().map(load).transpose()?;
-    let outcome = identify::run(&arm, train, val, &cfg).map_err(bad)?;
+    let outcome = identify::run(&arm, train, val, &cfg).map_err(bad);
+    bar.finish_and_clear();
+    let outcome = outcome?;
     check_warnings(args, &[&outcome])?;
     let table = arm.dh_table().ok();
     let files = crate::report::write(&args.out, &outcome, &command, table.as_ref())

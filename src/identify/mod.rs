@@ -57,6 +57,7 @@ pub mod physical;
 mod predict;
 mod prepare;
 mod problem;
+pub mod progress;
 mod regress;
 mod rows;
 mod scan;
@@ -70,6 +71,7 @@ pub use outcome::{Estimated, FileInfo, Outcome, StepRow, Undetermined};
 pub use predict::{BeforeAfter, Predictions, Series};
 pub use prepare::{PrepCache, Prepared, Smoothing};
 pub use problem::Problem;
+pub use progress::Progress;
 pub use regress::KEEP_RATE_PER_CUTOFF;
 pub use scan::{
     choose_cutoff, scan_pieces, scan_sampling, CutoffTrial, FilterChoice, ScanSampling,
@@ -158,6 +160,8 @@ pub struct Config {
     pub smoothing: Option<Smoothing>,
     /// Stage 8: the physically consistent estimate.
     pub physical: physical::PhysicalOptions,
+    /// Where to report progress (stages, the scan's cut-offs, a study's folds).
+    pub progress: Progress,
 }
 
 impl Default for Config {
@@ -170,6 +174,7 @@ impl Default for Config {
             blocks: 20,
             smoothing: None,
             physical: physical::PhysicalOptions::default(),
+            progress: Progress::default(),
         }
     }
 }
@@ -187,6 +192,8 @@ fn scan_and_run(
     cache: &mut PrepCache,
 ) -> Result<Outcome, IdentifyError> {
     let table = arm.dh_table().ok();
+    cfg.progress
+        .stage("estimating derivatives and the spectral cut-off", 0);
     let fit = |cache: &mut PrepCache, choice: FilterChoice| -> Result<Outcome, IdentifyError> {
         let (fc, sm) = (choice.cutoff_hz, choice.smoothing);
         let preps = cache.get_all(train, cfg, fc, sm)?;
@@ -199,12 +206,15 @@ fn scan_and_run(
         run_prepared(arm.name(), base, table.as_ref(), &preps, val.as_ref(), cfg)
     };
     let (choice, scan) = choose_cutoff(base, table.as_ref(), train, cfg, cache, None)?;
+    cfg.progress
+        .stage("fitting, searching effects, judging the models", 0);
     let mut out = fit(cache, choice)?;
     out.cutoff_scan = scan;
     let automatic = cfg.derivative.cutoff_hz.is_none() || cfg.smoothing.is_none();
     if let (Some(lm), true) = (out.load_model.clone(), automatic) {
         let (again, scan) = choose_cutoff(base, table.as_ref(), train, cfg, cache, Some(&lm))?;
         if again != choice {
+            cfg.progress.stage("refitting at the new cut-off", 0);
             out = fit(cache, again)?;
         }
         out.cutoff_scan = scan;
@@ -306,10 +316,21 @@ pub fn leave_one_out(
     // Every fold's scan starts from each of its files prepared at the given (or spectral)
     // cut-off: prepared once here, then the folds run in parallel, each with its own copy.
     let mut cache = PrepCache::default();
+    cfg.progress.stage("reading and checking the files", 0);
     cache.get_all(&files, cfg, cfg.derivative.cutoff_hz, Smoothing::default())?;
+    cfg.progress
+        .stage("leave-one-out folds", files.len() as u64);
+    let (outer, inner) = (
+        &cfg.progress,
+        Config {
+            progress: Progress::silent(),
+            ..cfg.clone()
+        },
+    );
     let folds: Vec<Result<Outcome, IdentifyError>> = (0..files.len())
         .into_par_iter()
         .map(|k| {
+            let cfg = &inner;
             let train: Vec<Log> = files
                 .iter()
                 .enumerate()
@@ -317,7 +338,9 @@ pub fn leave_one_out(
                 .map(|(_, p)| p.clone())
                 .collect();
             let mut cache = cache.clone();
-            scan_and_run(arm, &base, &train, Some(&files[k]), cfg, &mut cache)
+            let out = scan_and_run(arm, &base, &train, Some(&files[k]), cfg, &mut cache);
+            outer.step();
+            out
         })
         .collect();
     folds.into_iter().collect()

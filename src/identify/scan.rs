@@ -154,6 +154,12 @@ pub fn choose_cutoff(
         ratios: &ratios,
         modes: &modes,
     };
+    let what = if load.is_some() {
+        "cut-off scan again, with the load-dependent friction found"
+    } else {
+        "cut-off scan"
+    };
+    cfg.progress.stage(what, grid.len() as u64);
     let mut trials = scan.run(&grid)?;
     // Half a step either side of the coarse grid's best.
     if grid.len() > 1 {
@@ -163,6 +169,7 @@ pub fn choose_cutoff(
                 .into_iter()
                 .filter(|fc| (lo..=hi).contains(fc))
                 .collect();
+            cfg.progress.more(near.len() as u64);
             trials.extend(scan.run(&near)?);
         }
     }
@@ -262,6 +269,7 @@ impl Scan<'_> {
                 heldout_error: e,
             }));
         }
+        self.cfg.progress.step();
         Ok(out)
     }
 }

@@ -229,7 +229,14 @@ fn dfki_leave_one_out() {
         .iter()
         .map(|r| Log::open(&d.join(format!("run_{r}.csv.gz")), Some(2)).unwrap())
         .collect();
-    let outs = identify::leave_one_out(&arm, files, &Config::default()).unwrap();
+    // Progress reports every fold done (a hidden bar still counts).
+    let bar = indicatif::ProgressBar::hidden();
+    let cfg = Config {
+        progress: identify::Progress::to(bar.clone()),
+        ..Config::default()
+    };
+    let outs = identify::leave_one_out(&arm, files, &cfg).unwrap();
+    assert_eq!((bar.position(), bar.length()), (8, Some(8)));
     for (r, o) in runs.iter().zip(&outs) {
         println!("held out run {r}: found {:?}", found(o));
         for s in &o.steps {
