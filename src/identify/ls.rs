@@ -361,27 +361,18 @@ pub fn solve_x(
     let mut stacked = stack(factors, subset);
     let rows = stacked.nrows();
     let norms: Vec<f64> = (0..s).map(|k| stacked.column(k).norm()).collect();
-    let maxn = norms.iter().copied().fold(0.0, f64::max);
-    let degenerate = norms
-        .iter()
-        .any(|&n| n.is_nan() || n <= 1e-12 * maxn.max(1e-300));
     let fallback = || RankDeficient {
         dependent: dependent_columns(&stack(factors, subset).columns(0, s).into_owned(), &norms)
             .iter()
             .map(|&k| subset[k])
             .collect(),
     };
-    if degenerate {
+    if any_degenerate(&norms) {
         return Err(fallback());
     }
     // nalgebra's storage is column-major: the QR below works on it in place.
     let m = stacked.as_mut_slice();
-    for k in 0..s {
-        let inv = 1.0 / norms[k];
-        for v in &mut m[k * rows..(k + 1) * rows] {
-            *v *= inv;
-        }
-    }
+    scale_columns(m, rows, &norms);
     let mut r = vec![0.0; c * c];
     householder_update(&mut r, c, m, rows, rows);
     if (0..s).any(|k| r[k * c + k].abs() < RANK_TOL) {
@@ -434,12 +425,7 @@ impl Prefix {
         let rows = stacked.nrows();
         let norms: Vec<f64> = (0..s).map(|k| stacked.column(k).norm()).collect();
         let mut q = stacked.as_slice()[..rows * s].to_vec();
-        for (k, n) in norms.iter().enumerate() {
-            let inv = 1.0 / n;
-            for v in &mut q[k * rows..(k + 1) * rows] {
-                *v *= inv;
-            }
-        }
+        scale_columns(&mut q, rows, &norms);
         let (mut r, mut taus) = (vec![0.0; s * s], vec![None; s]);
         householder_taus(&mut r, s, &mut q, rows, rows, &mut taus);
         Prefix {
@@ -470,20 +456,11 @@ pub fn solve_x_after(
     let mut m = stack(factors, &subset[s0..]);
     let mut norms = prefix.norms.clone();
     norms.extend((0..s - s0).map(|k| m.column(k).norm()));
-    let maxn = norms.iter().copied().fold(0.0, f64::max);
-    if norms
-        .iter()
-        .any(|&n| n.is_nan() || n <= 1e-12 * maxn.max(1e-300))
-    {
+    if any_degenerate(&norms) {
         return solve_x(factors, subset);
     }
     let m = m.as_mut_slice();
-    for (k, n) in norms[s0..].iter().enumerate() {
-        let inv = 1.0 / n;
-        for v in &mut m[k * rows..(k + 1) * rows] {
-            *v *= inv;
-        }
-    }
+    scale_columns(m, rows, &norms[s0..]);
     let mut r = vec![0.0; c * c];
     for l in 0..s0 {
         r[l * c..l * c + l + 1].copy_from_slice(&prefix.r[l * s0..l * s0 + l + 1]);
@@ -519,6 +496,28 @@ pub fn solve_x_after(
     Ok(back_substitute(&r, s, &norms))
 }
 
+/// A column norm that is NaN or negligible next to the largest (`maxn`): the column carries
+/// nothing this data can use.
+fn degenerate(n: f64, maxn: f64) -> bool {
+    n.is_nan() || n <= 1e-12 * maxn.max(1e-300)
+}
+
+/// Whether any of `norms` is [`degenerate`].
+fn any_degenerate(norms: &[f64]) -> bool {
+    let maxn = norms.iter().copied().fold(0.0, f64::max);
+    norms.iter().any(|&n| degenerate(n, maxn))
+}
+
+/// Scales column `k` of the column-major `m` (`rows` long columns) by `1 / norms[k]`.
+fn scale_columns(m: &mut [f64], rows: usize, norms: &[f64]) {
+    for (k, n) in norms.iter().enumerate() {
+        let inv = 1.0 / n;
+        for v in &mut m[k * rows..(k + 1) * rows] {
+            *v *= inv;
+        }
+    }
+}
+
 /// Stacks `w_g · R_g[:, subset ∪ τ]` (τ last).
 fn stack(factors: &[(&DMatrix<f64>, f64)], subset: &[usize]) -> DMatrix<f64> {
     let s = subset.len();
@@ -547,7 +546,7 @@ pub fn dependent_columns(a: &DMatrix<f64>, norms: &[f64]) -> Vec<usize> {
     #[allow(clippy::needless_range_loop)]
     for k in 0..a.ncols() {
         let n = norms[k];
-        if n.is_nan() || n <= 1e-12 * maxn.max(1e-300) {
+        if degenerate(n, maxn) {
             dep.push(k);
             continue;
         }
