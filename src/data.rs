@@ -348,6 +348,12 @@ impl RowLayout {
     pub fn width(&self) -> usize {
         1 + self.dof * (1 + usize::from(self.dq) + usize::from(self.ddq) + usize::from(self.tau))
     }
+
+    /// Where a row's τ block starts (`None` without one).
+    pub fn tau_offset(&self) -> Option<usize> {
+        self.tau
+            .then(|| 1 + self.dof * (1 + usize::from(self.dq) + usize::from(self.ddq)))
+    }
 }
 
 /// Streams a CSV (or gzip-compressed CSV) source row by row into `sink`, checking every cell as

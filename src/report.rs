@@ -18,6 +18,7 @@ use std::io::Write as _;
 use std::path::{Path, PathBuf};
 
 use plotters::prelude::*;
+use rayon::prelude::*;
 use serde_json::{json, Value};
 
 use crate::dh::DhTable;
@@ -50,30 +51,33 @@ pub fn write(
     table: Option<&DhTable>,
 ) -> Result<Vec<PathBuf>, ReportError> {
     // Render everything first: nothing is written if any part fails.
+    // The plots, rendered in parallel (each on its own), kept in order.
+    type Render = fn(&Outcome, usize) -> Result<String, String>;
+    let mut wanted: Vec<(String, Render, usize)> = (0..o.dof)
+        .map(|j| {
+            let name = format!("residual_vs_velocity_joint{}.svg", j + 1);
+            (name, residual_plot as Render, j)
+        })
+        .collect();
+    if o.validate.is_some() {
+        wanted.extend((0..o.dof).map(|j| {
+            let name = format!("validation_joint{}.svg", j + 1);
+            (name, validation_plot as Render, j)
+        }));
+    }
+    let rendered: Vec<Result<String, String>> = wanted
+        .par_iter()
+        .map(|(_, render, j)| render(o, *j))
+        .collect();
     let mut files: Vec<(String, Vec<u8>)> = Vec::new();
     let mut plots = Vec::new();
-    let mut plot = |name: String, svg: Result<String, String>| -> Result<(), ReportError> {
+    for ((name, _, _), svg) in wanted.into_iter().zip(rendered) {
         let svg = svg.map_err(|msg| ReportError::Plot {
             name: name.clone(),
             msg,
         })?;
         files.push((name.clone(), svg.into_bytes()));
         plots.push(name);
-        Ok(())
-    };
-    for j in 0..o.dof {
-        plot(
-            format!("residual_vs_velocity_joint{}.svg", j + 1),
-            residual_plot(o, j),
-        )?;
-    }
-    if o.validate.is_some() {
-        for j in 0..o.dof {
-            plot(
-                format!("validation_joint{}.svg", j + 1),
-                validation_plot(o, j),
-            )?;
-        }
     }
     let json = serde_json::to_string_pretty(&json_report(o, command))
         .unwrap_or_else(|e| format!("{{\"error\": \"{e}\"}}"));

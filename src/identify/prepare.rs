@@ -365,13 +365,21 @@ pub(super) fn raw_in_core(
     if first >= r1 {
         return;
     }
-    let rows = p.log.read(first, r1);
     let n = p.dof();
-    let tau = rows.tau.as_deref().unwrap_or(&[]);
-    for r in (first..r1).step_by(stride) {
-        let (i, t) = (r - first, rows.t[r - first]);
-        f(r, t, &tau[i * n..(i + 1) * n], grid_pos(p, r, t));
-    }
+    let at = p
+        .log
+        .layout
+        .tau_offset()
+        .expect("prepared files have torque (checked when prepared)");
+    // Straight from the log's rows (no copy into a trajectory).
+    let mut r = first;
+    p.log.rows(first, r1, |row| {
+        if (r - first) % stride == 0 {
+            let t = row[0];
+            f(r, t, &row[at..at + n], grid_pos(p, r, t));
+        }
+        r += 1;
+    });
 }
 
 #[cfg(test)]

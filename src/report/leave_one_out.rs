@@ -1,6 +1,7 @@
 //! The leave-one-out study's report: `leave_one_out.md` / `.json` (one row per held-out file,
 //! the pooled validation error) and each fold's full report in `heldout_<file>/`.
 
+use rayon::prelude::*;
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -91,9 +92,10 @@ pub fn write(
         p.map(|(b, a, c)| serde_json::json!({"before": b, "after": a, "consistent": c}))
     };
     let json = serde_json::json!({"folds": rows, "pooled": both(pooled), "pooled_from_states": both(states), "command": command});
-    for (d, o) in &reports {
-        super::write(d, o, command, table)?;
-    }
+    // Each fold's report on its own thread (they share nothing).
+    reports
+        .par_iter()
+        .try_for_each(|(d, o)| super::write(d, o, command, table).map(drop))?;
     atomic_write(&dir.join("leave_one_out.md"), |w| {
         w.write_all(md.as_bytes())
     })?;

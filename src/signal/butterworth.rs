@@ -19,6 +19,9 @@ impl Biquad {
         mut x: impl Iterator<Item = &'a mut [f64; L]>,
     ) {
         let Some(first) = x.next() else { return };
+        if let [s0, s1] = sections {
+            return Self::cascade2_lanes(s0, s1, first, x);
+        }
         let m = sections.len();
         let mut z = vec![([0.0; L], [0.0; L]); m];
         for (s, (z1, z2)) in sections.iter().zip(z.iter_mut()) {
@@ -32,6 +35,31 @@ impl Biquad {
             for (s, (z1, z2)) in sections.iter().zip(z.iter_mut()) {
                 s.step_lanes(v, z1, z2);
             }
+        }
+    }
+
+    /// [`Biquad::cascade_lanes`] of two sections (order 4, the usual one) with the states in
+    /// local arrays the compiler keeps in registers: the same operations in the same order.
+    fn cascade2_lanes<'a, const L: usize>(
+        s0: &Biquad,
+        s1: &Biquad,
+        first: &'a mut [f64; L],
+        x: impl Iterator<Item = &'a mut [f64; L]>,
+    ) {
+        let (mut z01, mut z02, mut z11, mut z12) = ([0.0; L], [0.0; L], [0.0; L], [0.0; L]);
+        for l in 0..L {
+            z02[l] = (s0.b[2] - s0.a[1]) * first[l];
+            z01[l] = (s0.b[1] - s0.a[0]) * first[l] + z02[l];
+        }
+        s0.step_lanes(first, &mut z01, &mut z02);
+        for l in 0..L {
+            z12[l] = (s1.b[2] - s1.a[1]) * first[l];
+            z11[l] = (s1.b[1] - s1.a[0]) * first[l] + z12[l];
+        }
+        s1.step_lanes(first, &mut z11, &mut z12);
+        for v in x {
+            s0.step_lanes(v, &mut z01, &mut z02);
+            s1.step_lanes(v, &mut z11, &mut z12);
         }
     }
 
