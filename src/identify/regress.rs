@@ -23,73 +23,82 @@ pub(super) fn decimation(p: &Prepared) -> usize {
 }
 
 /// Regression rows of one file on its grid around a core `a..b`: the grid samples `lo..hi`
-/// (the core with the regression filter's reach on each side); per joint its active columns
-/// then τ, column-major: `cols[j][l * w + (k - lo)]`, `w = hi - lo`.
+/// (the core with the regression filter's reach on each side); per joint, row-major, its active
+/// columns then τ: `rows[j][(k - lo) * (a_j + 1) + l]`.
 struct Chunk {
     lo: usize,
     hi: usize,
-    cols: Vec<Vec<f64>>,
+    rows: Vec<Vec<f64>>,
 }
 
 impl Chunk {
     /// Unfiltered rows and the measured τ on the grid around the core `a..b`.
     fn new(p: &Prepared, rows: &mut Rows, active: &[Vec<usize>], (a, b): (usize, usize)) -> Chunk {
-        let (n, nc) = (rows.layout.dof, rows.layout.ncols());
+        let nc = rows.layout.ncols();
         let reach = p.rfilter.as_zero_phase().reach();
         let (lo, hi) = (a.saturating_sub(reach), (b + reach).min(p.est.grid.n));
         let w = hi - lo;
-        let mut cols: Vec<Vec<f64>> = active
+        let mut out: Vec<Vec<f64>> = active
             .iter()
-            .map(|a| vec![0.0; (a.len() + 1) * w])
+            .map(|a| Vec::with_capacity((a.len() + 1) * w))
             .collect();
-        if let Some(table) = &p.rows {
-            for k in lo..hi {
-                for (j, cj) in cols.iter_mut().enumerate() {
-                    for (l, &v) in table.row(j, k).iter().enumerate() {
-                        cj[l * w + (k - lo)] = v;
-                    }
-                }
-            }
-        } else {
-            let st = p.states(lo, hi);
-            for k in lo..hi {
-                let buf = rows.fill_grid(&st, k);
-                for j in 0..n {
-                    for (l, &c) in active[j].iter().enumerate() {
-                        cols[j][l * w + (k - lo)] = buf[j * nc + c];
-                    }
-                }
-            }
-        }
         match &p.rows {
             Some(table) => {
-                for (j, cj) in cols.iter_mut().enumerate() {
-                    cj[active[j].len() * w..].copy_from_slice(table.tau(j, lo, hi));
+                for (j, o) in out.iter_mut().enumerate() {
+                    let tau = table.tau(j, lo, hi);
+                    for k in lo..hi {
+                        o.extend_from_slice(table.row(j, k));
+                        o.push(tau[k - lo]);
+                    }
                 }
             }
             None => {
+                let st = p.states(lo, hi);
                 let tau = p.grid_tau(lo, hi);
-                for (j, cj) in cols.iter_mut().enumerate() {
-                    cj[active[j].len() * w..].copy_from_slice(&tau[j]);
+                for k in lo..hi {
+                    let buf = rows.fill_grid(&st, k);
+                    for (j, o) in out.iter_mut().enumerate() {
+                        o.extend(active[j].iter().map(|&c| buf[j * nc + c]));
+                        o.push(tau[j][k - lo]);
+                    }
                 }
             }
         }
-        Chunk { lo, hi, cols }
+        debug_assert!(out
+            .iter()
+            .zip(active)
+            .all(|(o, a)| o.len() == (a.len() + 1) * w));
+        Chunk { lo, hi, rows: out }
     }
 
-    fn w(&self) -> usize {
-        self.hi - self.lo
-    }
-
-    /// Parallel filtering of one joint's channels (all-zero channels are left as they are).
-    fn filter_joint(p: &Prepared, cols: &mut [f64], w: usize, lo: usize, hi: usize) {
-        let mut chans: Vec<&mut [f64]> = cols
-            .chunks_mut(w)
-            .filter(|ch| ch.iter().any(|v| *v != 0.0))
-            .collect();
-        p.rfilter
-            .as_zero_phase()
-            .apply_many(&mut chans, lo == 0, hi == p.est.grid.n);
+    /// Parallel filtering of one joint's row-major channels (all-zero channels are left as
+    /// they are), only the rows `keep` (indices into the chunk) written to a new block.
+    fn filter_joint(
+        p: &Prepared,
+        rows: &[f64],
+        width: usize,
+        lo: usize,
+        hi: usize,
+        keep: &[usize],
+    ) -> Vec<f64> {
+        let mut nonzero = vec![false; width];
+        for r in rows.chunks_exact(width) {
+            for (z, v) in nonzero.iter_mut().zip(r) {
+                *z |= *v != 0.0;
+            }
+        }
+        let cols: Vec<usize> = (0..width).filter(|&c| nonzero[c]).collect();
+        let mut out = vec![0.0; keep.len() * width];
+        p.rfilter.as_zero_phase().apply_rows(
+            rows,
+            width,
+            &cols,
+            lo == 0,
+            hi == p.est.grid.n,
+            keep,
+            &mut out,
+        );
+        out
     }
 }
 
@@ -117,26 +126,27 @@ pub(super) fn accumulate_fit(
     // stays in order, so the factors are the same bit for bit).
     let mut next = all.first().map(|&c| Chunk::new(p, &mut rows, &active, c));
     for (i, &(a, b)) in all.iter().enumerate() {
-        let Some(mut chunk) = next.take() else { break };
-        let (lo, hi, w) = (chunk.lo, chunk.hi, chunk.w());
-        let keep: Vec<(usize, usize)> = (a..b)
+        let Some(chunk) = next.take() else { break };
+        let (lo, hi) = (chunk.lo, chunk.hi);
+        let (keep, blocks): (Vec<usize>, Vec<usize>) = (a..b)
             .filter(|&k| (k - k0) % decim == 0)
-            .map(|k| (k, p.block_of(k, nblocks)))
-            .collect();
+            .map(|k| (k - lo, p.block_of(k, nblocks)))
+            .unzip();
         let fold = || {
             chunk
-                .cols
-                .par_iter_mut()
+                .rows
+                .par_iter()
                 .zip(accs.par_iter_mut())
                 .zip(active.par_iter())
-                .for_each(|((cj, acc), act)| {
-                    Chunk::filter_joint(p, cj, w, lo, hi);
+                .for_each(|((rj, acc), act)| {
+                    let width = act.len() + 1;
+                    let kept = Chunk::filter_joint(p, rj, width, lo, hi, &keep);
                     let mut row = vec![0.0; nc + 1];
-                    for &(k, blk) in &keep {
+                    for (r, &blk) in kept.chunks_exact(width).zip(&blocks) {
                         for (l, &c) in act.iter().enumerate() {
-                            row[c] = cj[l * w + (k - lo)];
+                            row[c] = r[l];
                         }
-                        row[nc] = cj[act.len() * w + (k - lo)];
+                        row[nc] = r[act.len()];
                         acc[blk].push(&row);
                     }
                 });

@@ -83,6 +83,30 @@ pub trait ZeroPhase: Sync {
             self.apply(x, pad_left, pad_right);
         }
     }
+    /// Columns `cols` of the row-major block `x` (rows of `stride` values), each filtered as
+    /// [`ZeroPhase::apply`] filters a channel, but only rows `keep` written, to
+    /// `out[i * stride + c]` for `keep[i]` (the other columns of `out` are left as they are).
+    /// A filter may run the columns side by side; the result is the same.
+    #[allow(clippy::too_many_arguments)]
+    fn apply_rows(
+        &self,
+        x: &[f64],
+        stride: usize,
+        cols: &[usize],
+        pad_left: bool,
+        pad_right: bool,
+        keep: &[usize],
+        out: &mut [f64],
+    ) {
+        let rows = x.len() / stride;
+        for &c in cols {
+            let mut ch: Vec<f64> = (0..rows).map(|k| x[k * stride + c]).collect();
+            self.apply(&mut ch, pad_left, pad_right);
+            for (i, &k) in keep.iter().enumerate() {
+                out[i * stride + c] = ch[k];
+            }
+        }
+    }
     /// Samples beyond which the filter's influence is negligible (≈1e-8 relative).
     fn reach(&self) -> usize;
     /// Amplitude gain at frequency `f` (Hz).

@@ -318,6 +318,31 @@ mod tests {
     use super::*;
     use crate::signal::sines;
 
+    /// The trait's row-major filtering (what the regression uses) is each column filtered on
+    /// its own, only the kept rows written.
+    #[test]
+    fn row_major_filtering_is_each_column_filtered_alone() {
+        let sg = SavGol::new(20, 3, 0.002);
+        let (rows, stride) = (300, 3);
+        let x: Vec<f64> = (0..rows * stride)
+            .map(|i| sines((i / stride) as f64 * 0.002 + (i % stride) as f64).0)
+            .collect();
+        let keep = [0, 7, 150, 299];
+        let mut out = vec![-1.0; keep.len() * stride];
+        sg.apply_rows(&x, stride, &[0, 2], true, false, &keep, &mut out);
+        for c in [0, 2] {
+            let mut ch: Vec<f64> = (0..rows).map(|k| x[k * stride + c]).collect();
+            sg.apply(&mut ch, true, false);
+            for (i, &k) in keep.iter().enumerate() {
+                assert_eq!(out[i * stride + c], ch[k]);
+            }
+        }
+        assert!(keep
+            .iter()
+            .enumerate()
+            .all(|(i, _)| out[i * stride + 1] == -1.0));
+    }
+
     /// Long windows go through the FFT convolution and the end fits through one polynomial per
     /// end: both must still be exact on a cubic (the fit reproduces it), here with a 401-sample
     /// window over 3000 samples, and the interior must equal the direct sums.
