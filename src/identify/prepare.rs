@@ -8,7 +8,7 @@ use std::sync::Arc;
 use rayon::prelude::*;
 use serde::Serialize;
 
-use super::rows::RowTable;
+use super::rows::{GridBaseCache, RowTable};
 use super::{Config, IdentifyError, MIN_SAMPLES};
 use crate::derivative::{self, Estimator, Filter, States};
 use crate::log::Log;
@@ -256,6 +256,9 @@ impl Prepared {
 #[derive(Debug, Default, Clone)]
 pub struct PrepCache {
     map: Vec<((usize, usize), u64, Prepared)>,
+    /// The scans' states and base regressor per file and cut-off (shared by clones: the folds
+    /// of a study).
+    pub(super) grids: GridBaseCache,
 }
 
 impl PrepCache {

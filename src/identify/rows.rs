@@ -2,6 +2,9 @@
 //! columns from the first-stage model's torque ([`Rows`]). Used by the regression and by every
 //! prediction.
 
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex};
+
 use rayon::prelude::*;
 
 use super::base::{self, BaseModel};
@@ -56,9 +59,32 @@ impl<'a> Rows<'a> {
         &self.row
     }
 
+    /// [`Rows::fill_grid`] with the base regressor of the state given (`yb`, as
+    /// [`BaseModel::eval`] writes it) instead of evaluated.
+    fn fill_grid_with(&mut self, st: &States, k: usize, yb: &[f64]) -> &[f64] {
+        let i = k - st.lo;
+        for j in 0..self.layout.dof {
+            (self.q[j], self.dq[j], self.ddq[j]) = (st.q[j][i], st.dq[j][i], st.ddq[j][i]);
+        }
+        let (q, dq, ddq) = (
+            std::mem::take(&mut self.q),
+            std::mem::take(&mut self.dq),
+            std::mem::take(&mut self.ddq),
+        );
+        self.yb.copy_from_slice(yb);
+        self.place(&q, &dq, &ddq);
+        (self.q, self.dq, self.ddq) = (q, dq, ddq);
+        &self.row
+    }
+
     fn fill(&mut self, q: &[f64], dq: &[f64], ddq: &[f64]) {
-        let (n, nb, nc) = (self.layout.dof, self.layout.nb, self.layout.ncols());
         self.base.eval(&mut self.scratch, q, dq, ddq, &mut self.yb);
+        self.place(q, dq, ddq);
+    }
+
+    /// The rows from the base regressor in `self.yb` and the effect columns of the state.
+    fn place(&mut self, q: &[f64], dq: &[f64], ddq: &[f64]) {
+        let (n, nb, nc) = (self.layout.dof, self.layout.nb, self.layout.ncols());
         let out = &mut self.row;
         for j in 0..n {
             out[j * nc..j * nc + nb].copy_from_slice(&self.yb[j * nb..(j + 1) * nb]);
@@ -113,33 +139,61 @@ impl RowTable {
         p.est.grid.n * width * std::mem::size_of::<f64>()
     }
 
-    /// The rows of `p`'s whole grid (chunks in parallel, each from its own window of states).
-    pub(super) fn new(p: &Prepared, base: &BaseModel, layout: &Layout) -> RowTable {
+    /// The rows of `p`'s whole grid (chunks in parallel, each from its own window of states),
+    /// from `shared` (the same file's states, torque and base regressor at this cut-off) when
+    /// given: the same numbers, only the effect columns evaluated.
+    pub(super) fn new(
+        p: &Prepared,
+        base: &BaseModel,
+        layout: &Layout,
+        shared: Option<&GridBase>,
+    ) -> RowTable {
         let n = layout.dof;
         let active: Vec<Vec<usize>> = (0..n).map(|j| layout.active(j)).collect();
         let widths: Vec<usize> = active.iter().map(Vec::len).collect();
         let nc = layout.ncols();
         // Per chunk: each joint's rows, each joint's torque.
         type Part = (Vec<Vec<f64>>, Vec<Vec<f64>>);
-        let parts: Vec<Part> = cores(p, 0, p.est.grid.n)
-            .par_iter()
-            .map(|&(a, b)| {
-                let mut rows = Rows::new(base, layout);
-                let st = p.states(a, b);
-                let tau = p.grid_tau(a, b);
-                let mut out: Vec<Vec<f64>> = widths
-                    .iter()
-                    .map(|w| Vec::with_capacity(w * (b - a)))
-                    .collect();
-                for k in a..b {
-                    let buf = rows.fill_grid(&st, k);
-                    for (j, o) in out.iter_mut().enumerate() {
-                        o.extend(active[j].iter().map(|&c| buf[j * nc + c]));
-                    }
+        let part = |(a, b): (usize, usize), given: Option<&BasePart>| -> Part {
+            let mut rows = Rows::new(base, layout);
+            let mut out: Vec<Vec<f64>> = widths
+                .iter()
+                .map(|w| Vec::with_capacity(w * (b - a)))
+                .collect();
+            let mut add = |buf: &[f64]| {
+                for (j, o) in out.iter_mut().enumerate() {
+                    o.extend(active[j].iter().map(|&c| buf[j * nc + c]));
                 }
-                (out, tau)
-            })
-            .collect();
+            };
+            let tau = match given {
+                Some(g) => {
+                    let m = n * layout.nb;
+                    for (k, yb) in (a..b).zip(g.yb.chunks_exact(m)) {
+                        add(rows.fill_grid_with(&g.st, k, yb));
+                    }
+                    g.tau.clone()
+                }
+                None => {
+                    let st = p.states(a, b);
+                    for k in a..b {
+                        add(rows.fill_grid(&st, k));
+                    }
+                    p.grid_tau(a, b)
+                }
+            };
+            (out, tau)
+        };
+        let parts: Vec<Part> = match shared {
+            Some(g) => g
+                .parts
+                .par_iter()
+                .map(|(c, bp)| part(*c, Some(bp)))
+                .collect(),
+            None => cores(p, 0, p.est.grid.n)
+                .par_iter()
+                .map(|&c| part(c, None))
+                .collect(),
+        };
         let g = p.est.grid.n;
         let mut table: Vec<Vec<f64>> = widths.iter().map(|w| Vec::with_capacity(w * g)).collect();
         let mut tau: Vec<Vec<f64>> = (0..n).map(|_| Vec::with_capacity(g)).collect();
@@ -167,5 +221,147 @@ impl RowTable {
     pub(super) fn row(&self, j: usize, k: usize) -> &[f64] {
         let w = self.widths[j];
         &self.rows[j][k * w..(k + 1) * w]
+    }
+}
+
+/// What one file's rows at one cut-off are made of besides the effect columns — its estimated
+/// states, measured torque and base regressor on the whole grid, window by window as
+/// [`RowTable::new`] evaluates them: the same in every fold of a leave-one-out study and in a
+/// rescan (only the effect columns depend on the training set, through their friction scales),
+/// so made once ([`GridBaseCache`]).
+pub(super) struct GridBase {
+    /// Per window `(a, b)` of [`cores`]: its states, torque and base regressor.
+    parts: Vec<((usize, usize), BasePart)>,
+}
+
+struct BasePart {
+    st: States,
+    tau: Vec<Vec<f64>>,
+    /// `[(k - a) * dof * nb ..]`: [`BaseModel::eval`] of grid sample `k`.
+    yb: Vec<f64>,
+}
+
+impl GridBase {
+    fn bytes(p: &Prepared, base: &BaseModel) -> usize {
+        let n = base.dof();
+        p.est.grid.n * (n * base.nb() + 4 * n) * std::mem::size_of::<f64>()
+    }
+
+    fn new(p: &Prepared, base: &BaseModel) -> GridBase {
+        let (n, m) = (base.dof(), base.dof() * base.nb());
+        let parts = cores(p, 0, p.est.grid.n)
+            .par_iter()
+            .map(|&(a, b)| {
+                let st = p.states(a, b);
+                let mut scratch = base.scratch();
+                let mut yb = vec![0.0; (b - a) * m];
+                let (mut q, mut dq, mut ddq) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+                for (i, out) in yb.chunks_exact_mut(m).enumerate() {
+                    for j in 0..n {
+                        (q[j], dq[j], ddq[j]) = (st.q[j][i], st.dq[j][i], st.ddq[j][i]);
+                    }
+                    base.eval(&mut scratch, &q, &dq, &ddq, out);
+                }
+                let tau = p.grid_tau(a, b);
+                ((a, b), BasePart { st, tau, yb })
+            })
+            .collect();
+        GridBase { parts }
+    }
+}
+
+/// Largest total of [`GridBase`]s a [`GridBaseCache`] keeps (bytes); past it, rows are
+/// evaluated as without it.
+pub(super) const GRID_BASE_BYTES: usize = 64 << 20;
+
+/// [`GridBase`]s by (file, cut-off), shared by its clones (the folds of a study run in
+/// parallel), up to [`GRID_BASE_BYTES`] in all.
+#[derive(Clone, Default)]
+pub struct GridBaseCache(Arc<Mutex<GridBases>>);
+
+#[derive(Default)]
+struct GridBases {
+    bytes: usize,
+    map: HashMap<((usize, usize), usize, u64), Arc<GridBase>>,
+}
+
+impl std::fmt::Debug for GridBaseCache {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let held = self.0.lock().map_or(0, |g| g.map.len());
+        write!(f, "GridBaseCache({held} held)")
+    }
+}
+
+impl GridBaseCache {
+    /// `p`'s [`GridBase`] at cut-off `fc` (the one `p` was prepared at), made now if not held;
+    /// `None` when it would not fit.
+    pub(super) fn get(&self, p: &Prepared, base: &BaseModel, fc: f64) -> Option<Arc<GridBase>> {
+        let key = (p.log.key(), p.log.len(), fc.to_bits());
+        let bytes = GridBase::bytes(p, base);
+        {
+            let held = self.0.lock().ok()?;
+            if let Some(g) = held.map.get(&key) {
+                return Some(Arc::clone(g));
+            }
+            if held.bytes + bytes > GRID_BASE_BYTES {
+                return None;
+            }
+        }
+        let made = Arc::new(GridBase::new(p, base));
+        let mut held = self.0.lock().ok()?;
+        // Another fold may have made it meanwhile: the same numbers; the first one is kept.
+        if let Some(g) = held.map.get(&key) {
+            return Some(Arc::clone(g));
+        }
+        if held.bytes + bytes <= GRID_BASE_BYTES {
+            held.bytes += bytes;
+            held.map.insert(key, Arc::clone(&made));
+        }
+        Some(made)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::effects::{Effect, Scales};
+    use crate::identify::layout::make_layout;
+    use crate::identify::prepare::Smoothing;
+    use crate::identify::synth::{generate, Spec};
+    use crate::identify::Config;
+    use crate::log::Log;
+
+    #[test]
+    fn rows_from_a_shared_grid_base_are_those_evaluated_directly_bit_for_bit() {
+        let arm = crate::arms::resolve("planar2").unwrap();
+        let table = arm.dh_table().unwrap();
+        let mut spec = Spec::new(table.clone(), 5).with_effect(Effect::Coulomb, 0, 0.8);
+        spec.duration = 40.0; // 20,000 samples: several windows
+        spec.jitter = 0.1;
+        let log = Log::from(generate(&spec));
+        let base = BaseModel::for_arm(&arm);
+        let cfg = Config::default();
+        let p = Prepared::with_cutoff(log, &cfg, Some(6.0), Smoothing::default(), None).unwrap();
+        let layout = make_layout(&base, Some(&table), std::slice::from_ref(&p), &cfg).0;
+        assert!(layout.terms.iter().any(|t| t.effect == Effect::Coulomb));
+
+        let cache = GridBaseCache::default();
+        let g = cache.get(&p, &base, 6.0).unwrap();
+        assert!(g.parts.len() > 1);
+        assert!(Arc::ptr_eq(&g, &cache.get(&p, &base, 6.0).unwrap()));
+        let direct = RowTable::new(&p, &base, &layout, None);
+        let shared = RowTable::new(&p, &base, &layout, Some(&g));
+        assert_eq!((&direct.rows, &direct.tau), (&shared.rows, &shared.tau));
+
+        // Another training set's friction scales (another fold): its own effect columns, the
+        // same base part.
+        let mut other = layout.clone();
+        other.scales[0] = Scales::from_rms_velocity(3.0);
+        let direct2 = RowTable::new(&p, &base, &other, None);
+        assert_eq!(
+            direct2.rows,
+            RowTable::new(&p, &base, &other, Some(&g)).rows
+        );
+        assert_ne!(direct2.rows, direct.rows);
     }
 }

@@ -14,7 +14,7 @@ use super::layout::{make_layout, Layout};
 use super::load_stage::LoadModel;
 use super::prepare::{PrepCache, Prepared, Smoothing};
 use super::problem::Problem;
-use super::rows::{RowTable, ROW_TABLE_BYTES};
+use super::rows::{GridBaseCache, RowTable, ROW_TABLE_BYTES};
 use super::{Config, IdentifyError, MIN_SAMPLES};
 use crate::effects::Term;
 use crate::log::Log;
@@ -153,6 +153,7 @@ pub fn choose_cutoff(
         all: &all,
         ratios: &ratios,
         modes: &modes,
+        grids: &cache.grids,
     };
     let what = if load.is_some() {
         "cut-off scan again, with the load-dependent friction found"
@@ -194,6 +195,8 @@ struct Scan<'a> {
     ratios: &'a [f64],
     /// Predictions judged: from the filtered rows or not.
     modes: &'a [bool],
+    /// The files' states and base regressor per cut-off, shared with other scans of them.
+    grids: &'a GridBaseCache,
 }
 
 impl Scan<'_> {
@@ -232,7 +235,10 @@ impl Scan<'_> {
                 tables = (bytes <= ROW_TABLE_BYTES).then(|| {
                     preps
                         .iter()
-                        .map(|p| Arc::new(RowTable::new(p, self.base, self.layout)))
+                        .map(|p| {
+                            let shared = self.grids.get(p, self.base, fc);
+                            Arc::new(RowTable::new(p, self.base, self.layout, shared.as_deref()))
+                        })
                         .collect()
                 });
             }
@@ -378,7 +384,7 @@ mod tests {
         let plain = vec![Prepared::with_cutoff(log, &cfg, Some(6.0), sm, None).unwrap()];
         let layout = make_layout(&base, Some(&table), &plain, &cfg).0;
         let mut tabled = plain.clone();
-        tabled[0].rows = Some(Arc::new(RowTable::new(&plain[0], &base, &layout)));
+        tabled[0].rows = Some(Arc::new(RowTable::new(&plain[0], &base, &layout, None)));
         let judge = |preps: &[Prepared]| {
             let p = Problem::build(&base, layout.clone(), preps, cfg.blocks);
             let subset = p.subset(&layout.terms);
