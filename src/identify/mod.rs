@@ -315,7 +315,7 @@ pub fn leave_one_out(
     }
     // Every fold's scan starts from each of its files prepared at the given (or spectral)
     // cut-off: prepared once here, then the folds run in parallel, each with its own copy.
-    let mut cache = PrepCache::default();
+    let mut cache = PrepCache::sharing_grids();
     cfg.progress.stage("reading and checking the files", 0);
     cache.get_all(&files, cfg, cfg.derivative.cutoff_hz, Smoothing::default())?;
     cfg.progress

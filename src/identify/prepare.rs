@@ -262,6 +262,15 @@ pub struct PrepCache {
 }
 
 impl PrepCache {
+    /// A cache whose clones share the scans' states and base regressor ([`GridBaseCache`]):
+    /// for the folds of a study.
+    pub(super) fn sharing_grids() -> Self {
+        PrepCache {
+            map: Vec::new(),
+            grids: GridBaseCache::shared(),
+        }
+    }
+
     pub(super) fn get(
         &mut self,
         t: &Log,

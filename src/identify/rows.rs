@@ -275,9 +275,11 @@ impl GridBase {
 pub(super) const GRID_BASE_BYTES: usize = 64 << 20;
 
 /// [`GridBase`]s by (file, cut-off), shared by its clones (the folds of a study run in
-/// parallel), up to [`GRID_BASE_BYTES`] in all.
+/// parallel), up to [`GRID_BASE_BYTES`] in all. The default holds none (a single
+/// identification scans each file at each cut-off once: nothing to share, memory to lose);
+/// [`GridBaseCache::shared`] is a study's.
 #[derive(Clone, Default)]
-pub struct GridBaseCache(Arc<Mutex<GridBases>>);
+pub struct GridBaseCache(Option<Arc<Mutex<GridBases>>>);
 
 #[derive(Default)]
 struct GridBases {
@@ -287,19 +289,29 @@ struct GridBases {
 
 impl std::fmt::Debug for GridBaseCache {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let held = self.0.lock().map_or(0, |g| g.map.len());
+        let held = self
+            .0
+            .as_ref()
+            .and_then(|c| c.lock().ok().map(|g| g.map.len()))
+            .unwrap_or(0);
         write!(f, "GridBaseCache({held} held)")
     }
 }
 
 impl GridBaseCache {
+    /// A cache that holds what it makes (for the folds of a study).
+    pub(super) fn shared() -> Self {
+        GridBaseCache(Some(Arc::default()))
+    }
+
     /// `p`'s [`GridBase`] at cut-off `fc` (the one `p` was prepared at), made now if not held;
     /// `None` when it would not fit.
     pub(super) fn get(&self, p: &Prepared, base: &BaseModel, fc: f64) -> Option<Arc<GridBase>> {
+        let cache = self.0.as_ref()?;
         let key = (p.log.key(), p.log.len(), fc.to_bits());
         let bytes = GridBase::bytes(p, base);
         {
-            let held = self.0.lock().ok()?;
+            let held = cache.lock().ok()?;
             if let Some(g) = held.map.get(&key) {
                 return Some(Arc::clone(g));
             }
@@ -308,7 +320,7 @@ impl GridBaseCache {
             }
         }
         let made = Arc::new(GridBase::new(p, base));
-        let mut held = self.0.lock().ok()?;
+        let mut held = cache.lock().ok()?;
         // Another fold may have made it meanwhile: the same numbers; the first one is kept.
         if let Some(g) = held.map.get(&key) {
             return Some(Arc::clone(g));
@@ -345,7 +357,8 @@ mod tests {
         let layout = make_layout(&base, Some(&table), std::slice::from_ref(&p), &cfg).0;
         assert!(layout.terms.iter().any(|t| t.effect == Effect::Coulomb));
 
-        let cache = GridBaseCache::default();
+        assert!(GridBaseCache::default().get(&p, &base, 6.0).is_none());
+        let cache = GridBaseCache::shared();
         let g = cache.get(&p, &base, 6.0).unwrap();
         assert!(g.parts.len() > 1);
         assert!(Arc::ptr_eq(&g, &cache.get(&p, &base, 6.0).unwrap()));
