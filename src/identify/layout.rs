@@ -34,6 +34,17 @@ impl Layout {
         self.nb + self.terms.len()
     }
 
+    /// Whether `other` gives every state the same rows (the same columns, friction scales and
+    /// first-stage model): a [`super::rows::RowTable`] of one serves the other.
+    pub(super) fn same_rows(&self, other: &Layout) -> bool {
+        self.dof == other.dof
+            && self.nb == other.nb
+            && self.terms == other.terms
+            && self.scales == other.scales
+            && self.base_active == other.base_active
+            && self.load == other.load
+    }
+
     /// Column index of a term.
     pub fn col(&self, t: &Term) -> Option<usize> {
         self.terms.iter().position(|x| x == t).map(|i| self.nb + i)

@@ -203,7 +203,16 @@ fn scan_and_run(
             }
             None => None,
         };
-        run_prepared(arm.name(), base, table.as_ref(), &preps, val.as_ref(), cfg)
+        let grids = cache.grids.clone();
+        run_prepared_with(
+            arm.name(),
+            base,
+            table.as_ref(),
+            &preps,
+            val.as_ref(),
+            cfg,
+            &grids,
+        )
     };
     let (choice, scan) = choose_cutoff(base, table.as_ref(), train, cfg, cache, None)?;
     cfg.progress
@@ -279,7 +288,26 @@ pub fn run_prepared(
     val: Option<&Prepared>,
     cfg: &Config,
 ) -> Result<Outcome, IdentifyError> {
+    let grids = rows::GridBaseCache::default();
+    run_prepared_with(arm, base, table, train, val, cfg, &grids)
+}
+
+/// [`run_prepared`], the files' states and base regressor taken from `grids` where it holds
+/// them. When the files' rows fit in [`rows::ROW_TABLE_BYTES`] they are evaluated once into
+/// tables that the regression and the judging passes read (the numbers of rows evaluated pass
+/// by pass).
+fn run_prepared_with(
+    arm: &str,
+    base: &BaseModel,
+    table: Option<&crate::dh::DhTable>,
+    train: &[Prepared],
+    val: Option<&Prepared>,
+    cfg: &Config,
+    grids: &rows::GridBaseCache,
+) -> Result<Outcome, IdentifyError> {
     let (layout, declared, searched, merged) = make_layout(base, table, train, cfg);
+    let tabled = rows::RowTable::attach(base, &layout, train, grids);
+    let train = tabled.as_deref().unwrap_or(train);
     let mut problem = Problem::build(base, layout, train, cfg.blocks);
     let rigid = problem.subset(&[]);
     let independent = problem.independent(&rigid);
@@ -293,6 +321,13 @@ pub fn run_prepared(
     }
     let first = select::first_stage(problem, train, cfg, declared, &searched)?;
     let selected = load_stage(base, train, cfg, first)?;
+    // The judging passes read the final layout's rows (the load stage's, if it rebuilt).
+    let all: Vec<Prepared> = train.iter().chain(val).cloned().collect();
+    let retabled = rows::RowTable::attach(base, &selected.problem.layout, &all, grids);
+    let (train, val) = match &retabled {
+        Some(t) => (&t[..train.len()], t.get(train.len()).or(val)),
+        None => (train, val),
+    };
     let mut out = outcome::assemble(arm, base, train, val, cfg, selected, &merged)?;
     out.warnings = identifiability::warnings(train, table, base.dof());
     out.warnings

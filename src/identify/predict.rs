@@ -56,7 +56,7 @@ impl Predicted {
             .iter()
             .map(|&u| if u { vec![vec![0.0; w]; n] } else { Vec::new() })
             .collect();
-        if let Some(table) = &p.rows {
+        if let Some(table) = p.rows.as_deref().filter(|t| t.fits(rows.layout)) {
             for k in lo..hi {
                 for (set, out) in coefs.iter().zip(pred.iter_mut()) {
                     for (j, o) in out.iter_mut().enumerate() {
@@ -206,6 +206,11 @@ pub(super) fn for_predictions(
         })
         .collect();
     let wanted = vec![true; nm];
+    // The states are read here (q̇ at each sample): predicted from them, not from a row table.
+    let p = &Prepared {
+        rows: None,
+        ..p.clone()
+    };
     // One sample: t, q̇ (n), τ (n), then each model's prediction (n each).
     let width = 1 + 2 * n + nm * n;
     let chunk = |core: (usize, usize)| -> Vec<f64> {
@@ -218,7 +223,7 @@ pub(super) fn for_predictions(
         let st = pc
             .states
             .as_ref()
-            .expect("predictions of a file without a row table");
+            .expect("predicted without a row table, so from the states");
         let mut out = Vec::new();
         raw_in_core(p, core, stride, |_, t, tau, (k, s)| {
             out.push(t);

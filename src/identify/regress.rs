@@ -42,7 +42,7 @@ impl Chunk {
             .iter()
             .map(|a| Vec::with_capacity((a.len() + 1) * w))
             .collect();
-        match &p.rows {
+        match p.rows.as_deref().filter(|t| t.fits(rows.layout)) {
             Some(table) => {
                 for (j, o) in out.iter_mut().enumerate() {
                     let tau = table.tau(j, lo, hi);

@@ -122,6 +122,8 @@ impl<'a> Rows<'a> {
 /// regression filters and their predictions), where each pass evaluated the regressor anew.
 #[derive(Debug)]
 pub(super) struct RowTable {
+    /// The layout the rows are of (a pass with another reads nothing from the table).
+    layout: Layout,
     widths: Vec<usize>,
     rows: Vec<Vec<f64>>,
     /// The measured torque on the grid, per joint.
@@ -206,10 +208,44 @@ impl RowTable {
             }
         }
         RowTable {
+            layout: layout.clone(),
             widths,
             rows: table,
             tau,
         }
+    }
+
+    /// Whether the table holds the rows of `layout` (see [`Layout::same_rows`]).
+    pub(super) fn fits(&self, layout: &Layout) -> bool {
+        self.layout.same_rows(layout)
+    }
+
+    /// `files` with their tables of `layout`'s rows, when all fit in [`ROW_TABLE_BYTES`] (the
+    /// base part from `grids` where it holds it); `None` otherwise.
+    pub(super) fn attach(
+        base: &BaseModel,
+        layout: &Layout,
+        files: &[Prepared],
+        grids: &GridBaseCache,
+    ) -> Option<Vec<Prepared>> {
+        let bytes: usize = files.iter().map(|p| RowTable::bytes(p, layout)).sum();
+        if bytes > ROW_TABLE_BYTES {
+            return None;
+        }
+        Some(
+            files
+                .iter()
+                .map(|p| {
+                    if p.rows.as_deref().is_some_and(|t| t.fits(layout)) {
+                        return p.clone();
+                    }
+                    let shared = grids.get(p, base, p.est.report.cutoff_hz);
+                    let mut p = p.clone();
+                    p.rows = Some(Arc::new(RowTable::new(&p, base, layout, shared.as_deref())));
+                    p
+                })
+                .collect(),
+        )
     }
 
     /// Joint `j`'s measured torque on grid samples `lo..hi`.
@@ -371,6 +407,7 @@ mod tests {
         let mut other = layout.clone();
         other.scales[0] = Scales::from_rms_velocity(3.0);
         let direct2 = RowTable::new(&p, &base, &other, None);
+        assert!(direct.fits(&layout) && !direct.fits(&other) && direct2.fits(&other));
         assert_eq!(
             direct2.rows,
             RowTable::new(&p, &base, &other, Some(&g)).rows

@@ -406,6 +406,13 @@ mod tests {
         assert!(close(a.1, b.1) && close(a.2, b.2), "{a:?} {b:?}");
         // And the filtered prediction is not the states' one (the two passes differ).
         assert!((a.1 - a.2).abs() > 1e-6 * a.1, "{a:?}");
+        // A table of another layout's rows (another training set's friction scales) is not
+        // read: the passes evaluate the rows themselves, bit for bit as without a table.
+        let mut other = layout.clone();
+        other.scales[0] = crate::effects::Scales::from_rms_velocity(3.0);
+        let mut stale = plain.clone();
+        stale[0].rows = Some(Arc::new(RowTable::new(&plain[0], &base, &other, None)));
+        assert_eq!(judge(&stale), a);
     }
 
     #[test]
