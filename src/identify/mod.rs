@@ -15,7 +15,10 @@
 //!    differences (a q̇ column in the file is used, filtered, and differentiated for q̈). Files
 //!    with both q̇ and q̈ are used as given.
 //! 2. **Layout** (`layout.rs`, [`Layout`]): base columns, then effect terms; `rows.rs` fills
-//!    the rows of one state.
+//!    the rows of one state — once per file into a table that every later pass reads, when the
+//!    files' rows fit in 48 MB (each scan trial's, the final fit's), and a study's folds share
+//!    each file's states and base regressor per cut-off (only the effect columns depend on the
+//!    training set).
 //! 3. **Regression** (`regress.rs`) with *parallel filtering*: on each file's uniform grid the
 //!    rows `[Yb(q,q̇,q̈) | effect columns | τ]` are filtered column by column with a zero-phase
 //!    *regression filter* (also τ) of the same kind as the derivative filter, at its cut-off or
