@@ -45,23 +45,16 @@ impl<'a> Rows<'a> {
 
     /// Rows at grid sample `k` of estimated states `st`.
     pub(super) fn fill_grid(&mut self, st: &States, k: usize) -> &[f64] {
-        let i = k - st.lo;
-        for j in 0..self.layout.dof {
-            (self.q[j], self.dq[j], self.ddq[j]) = (st.q[j][i], st.dq[j][i], st.ddq[j][i]);
-        }
-        let (q, dq, ddq) = (
-            std::mem::take(&mut self.q),
-            std::mem::take(&mut self.dq),
-            std::mem::take(&mut self.ddq),
-        );
-        self.fill(&q, &dq, &ddq);
-        (self.q, self.dq, self.ddq) = (q, dq, ddq);
-        &self.row
+        self.fill_grid_from(st, k, None)
     }
 
     /// [`Rows::fill_grid`] with the base regressor of the state given (`yb`, as
     /// [`BaseModel::eval`] writes it) instead of evaluated.
     fn fill_grid_with(&mut self, st: &States, k: usize, yb: &[f64]) -> &[f64] {
+        self.fill_grid_from(st, k, Some(yb))
+    }
+
+    fn fill_grid_from(&mut self, st: &States, k: usize, yb: Option<&[f64]>) -> &[f64] {
         let i = k - st.lo;
         for j in 0..self.layout.dof {
             (self.q[j], self.dq[j], self.ddq[j]) = (st.q[j][i], st.dq[j][i], st.ddq[j][i]);
@@ -71,15 +64,15 @@ impl<'a> Rows<'a> {
             std::mem::take(&mut self.dq),
             std::mem::take(&mut self.ddq),
         );
-        self.yb.copy_from_slice(yb);
+        match yb {
+            Some(yb) => self.yb.copy_from_slice(yb),
+            None => self
+                .base
+                .eval(&mut self.scratch, &q, &dq, &ddq, &mut self.yb),
+        }
         self.place(&q, &dq, &ddq);
         (self.q, self.dq, self.ddq) = (q, dq, ddq);
         &self.row
-    }
-
-    fn fill(&mut self, q: &[f64], dq: &[f64], ddq: &[f64]) {
-        self.base.eval(&mut self.scratch, q, dq, ddq, &mut self.yb);
-        self.place(q, dq, ddq);
     }
 
     /// The rows from the base regressor in `self.yb` and the effect columns of the state.
