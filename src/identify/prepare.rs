@@ -384,12 +384,15 @@ pub(super) fn raw_in_core(
         .tau_offset()
         .expect("prepared files have torque (checked when prepared)");
     // Straight from the log's rows (no copy into a trajectory).
-    let mut r = first;
+    // Every `stride`-th row by a countdown (no division per row).
+    let (mut r, mut skip) = (first, 0);
     p.log.rows(first, r1, |row| {
-        if (r - first) % stride == 0 {
+        if skip == 0 {
             let t = row[0];
             f(r, t, &row[at..at + n], grid_pos(p, r, t));
+            skip = stride;
         }
+        skip -= 1;
         r += 1;
     });
 }
