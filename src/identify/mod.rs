@@ -206,7 +206,6 @@ fn scan_and_run(
             }
             None => None,
         };
-        let grids = cache.grids.clone();
         run_prepared_with(
             arm.name(),
             base,
@@ -214,7 +213,7 @@ fn scan_and_run(
             &preps,
             val.as_ref(),
             cfg,
-            &grids,
+            &cache.grids,
         )
     };
     let (choice, scan) = choose_cutoff(base, table.as_ref(), train, cfg, cache, None)?;

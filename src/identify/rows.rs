@@ -213,14 +213,15 @@ impl RowTable {
         self.layout.same_rows(layout)
     }
 
-    /// `files` with their tables of `layout`'s rows, when all fit in [`ROW_TABLE_BYTES`] (the
-    /// base part from `grids` where it holds it); `None` otherwise.
-    pub(super) fn attach(
+    /// The tables of `layout`'s rows of `files` (a file's own table kept where it is of
+    /// `layout`), when all fit in [`ROW_TABLE_BYTES`] (the base part from `grids` where it holds
+    /// it); `None` otherwise.
+    pub(super) fn for_files(
         base: &BaseModel,
         layout: &Layout,
         files: &[Prepared],
         grids: &GridBaseCache,
-    ) -> Option<Vec<Prepared>> {
+    ) -> Option<Vec<Arc<RowTable>>> {
         let bytes: usize = files.iter().map(|p| RowTable::bytes(p, layout)).sum();
         if bytes > ROW_TABLE_BYTES {
             return None;
@@ -228,14 +229,32 @@ impl RowTable {
         Some(
             files
                 .iter()
-                .map(|p| {
-                    if p.rows.as_deref().is_some_and(|t| t.fits(layout)) {
-                        return p.clone();
+                .map(|p| match p.rows.as_ref().filter(|t| t.fits(layout)) {
+                    Some(t) => Arc::clone(t),
+                    None => {
+                        let shared = grids.get(p, base, p.est.report.cutoff_hz);
+                        Arc::new(RowTable::new(p, base, layout, shared.as_deref()))
                     }
-                    let shared = grids.get(p, base, p.est.report.cutoff_hz);
-                    let mut p = p.clone();
-                    p.rows = Some(Arc::new(RowTable::new(&p, base, layout, shared.as_deref())));
-                    p
+                })
+                .collect(),
+        )
+    }
+
+    /// `files` with their tables of `layout`'s rows ([`RowTable::for_files`]).
+    pub(super) fn attach(
+        base: &BaseModel,
+        layout: &Layout,
+        files: &[Prepared],
+        grids: &GridBaseCache,
+    ) -> Option<Vec<Prepared>> {
+        let tables = Self::for_files(base, layout, files, grids)?;
+        Some(
+            files
+                .iter()
+                .zip(tables)
+                .map(|(p, t)| Prepared {
+                    rows: Some(t),
+                    ..p.clone()
                 })
                 .collect(),
         )

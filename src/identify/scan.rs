@@ -14,7 +14,7 @@ use super::layout::{make_layout, Layout};
 use super::load_stage::LoadModel;
 use super::prepare::{PrepCache, Prepared, Smoothing};
 use super::problem::Problem;
-use super::rows::{GridBaseCache, RowTable, ROW_TABLE_BYTES};
+use super::rows::{GridBaseCache, RowTable};
 use super::{Config, IdentifyError, MIN_SAMPLES};
 use crate::effects::Term;
 use crate::log::Log;
@@ -212,7 +212,7 @@ impl Scan<'_> {
     }
 
     /// One cut-off: each regression ratio's problem, both predictions judged on it; the rows are
-    /// evaluated once for all of them when they fit in [`ROW_TABLE_BYTES`].
+    /// evaluated once for all of them when they fit in [`super::rows::ROW_TABLE_BYTES`].
     fn cutoff(&self, fc: f64) -> Result<Vec<CutoffTrial>, IdentifyError> {
         let sm = |ratio| Smoothing {
             regression_ratio: ratio,
@@ -231,16 +231,7 @@ impl Scan<'_> {
         for &ratio in self.ratios {
             let mut preps = prepare(ratio)?;
             if tables.is_none() {
-                let bytes: usize = preps.iter().map(|p| RowTable::bytes(p, self.layout)).sum();
-                tables = (bytes <= ROW_TABLE_BYTES).then(|| {
-                    preps
-                        .iter()
-                        .map(|p| {
-                            let shared = self.grids.get(p, self.base, fc);
-                            Arc::new(RowTable::new(p, self.base, self.layout, shared.as_deref()))
-                        })
-                        .collect()
-                });
+                tables = RowTable::for_files(self.base, self.layout, &preps, self.grids);
             }
             if let Some(t) = &tables {
                 for (p, t) in preps.iter_mut().zip(t) {
