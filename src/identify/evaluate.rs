@@ -97,7 +97,30 @@ pub fn raw_sums_each(
     models: &[Judged],
     predictions: &[Prediction],
 ) -> Vec<RawSums> {
+    raw_sums_sampled(base, layout, files, blocks, models, predictions, None).0
+}
+
+/// Plot samples asked of [`raw_sums_sampled`]: every `stride`-th used raw sample of each file
+/// with the chosen predictions of the (full-data) `models`.
+#[derive(Debug, Clone, Copy)]
+pub struct Sampling<'a> {
+    pub stride: usize,
+    pub models: &'a [usize],
+}
+
+/// [`raw_sums_each`], collecting in the same pass the samples `sampling` asks for (see
+/// [`super::predict::Predicted::push_samples`]; files in order, each file's samples in order).
+pub fn raw_sums_sampled(
+    base: &BaseModel,
+    layout: &Layout,
+    files: &[Prepared],
+    blocks: Option<&[usize]>,
+    models: &[Judged],
+    predictions: &[Prediction],
+    sampling: Option<Sampling>,
+) -> (Vec<RawSums>, Vec<f64>) {
     let n = layout.dof;
+    let mut samples = Vec::new();
     let active: Vec<Vec<usize>> = (0..n).map(|j| layout.active(j)).collect();
     let mut total = vec![RawSums::zero(models.len(), n); predictions.len()];
     let mut offset = 0;
@@ -125,7 +148,12 @@ pub fn raw_sums_each(
                 Prediction::Filtered => true,
             })
             .collect();
-        let parts: Vec<Vec<RawSums>> = raw_cores(p)
+        // The sets whose samples are collected, in the pass of the chosen prediction.
+        let sampled: Option<(usize, Vec<usize>)> = sampling.map(|a| {
+            let sets = a.models.iter().map(|&m| first_set[m]).collect();
+            (a.stride, sets)
+        });
+        let parts: Vec<(Vec<RawSums>, Vec<f64>)> = raw_cores(p)
             .par_iter()
             .map(|&core| {
                 let mut rows = Rows::new(base, layout);
@@ -144,10 +172,12 @@ pub fn raw_sums_each(
                         }
                     }
                 }
-                let any_filtered = filtered.iter().any(|&f| f);
+                let any_filtered = filtered.iter().any(|&f| f)
+                    || (sampled.is_some() && p.smoothing.filtered_prediction);
                 let mut pc =
                     Predicted::new(p, &mut rows, &active, core, &sets, &wanted, any_filtered);
                 let mut out = vec![RawSums::zero(models.len(), n); predictions.len()];
+                let mut picked = Vec::new();
                 for pass in [false, true] {
                     if pass {
                         if !any_filtered {
@@ -158,18 +188,24 @@ pub fn raw_sums_each(
                     for (sums, _) in out.iter_mut().zip(&filtered).filter(|(_, &f)| f == pass) {
                         add_core(sums, p, core, nblocks, models, &first_set, &pc);
                     }
+                    if let Some((stride, sets)) = &sampled {
+                        if pass == p.smoothing.filtered_prediction {
+                            pc.push_samples(p, core, *stride, sets, &mut picked);
+                        }
+                    }
                 }
-                out
+                (out, picked)
             })
             .collect();
-        for part in &parts {
+        for (part, picked) in &parts {
             for (t, s) in total.iter_mut().zip(part) {
                 t.add(s);
             }
+            samples.extend_from_slice(picked);
         }
         offset += nblocks;
     }
-    total
+    (total, samples)
 }
 
 /// Adds the residuals of one core's raw samples to `sums` (predictions `pc`).

@@ -4,12 +4,14 @@
 use serde::Serialize;
 
 use super::base::BaseModel;
-use super::evaluate::{raw_sums_each, Errors, Judged, ModelResult, Prediction, StateErrors};
+use super::evaluate::{
+    raw_sums_sampled, Errors, Judged, ModelResult, Prediction, Sampling, StateErrors,
+};
 use super::layout::{Layout, Merged};
 use super::load_stage::{load_model, LoadModel};
 use super::ls;
 use super::physical::{self, Physical};
-use super::predict::{make_series, predictions, Predictions, Series};
+use super::predict::{predictions, series_strides, Predictions, Series};
 use super::prepare::{Prepared, Smoothing};
 use super::problem::{with_hint, Problem};
 use super::regress::decimation;
@@ -174,7 +176,8 @@ pub(super) fn assemble(
     let consistent_x = physical
         .as_ref()
         .map(|p| (p.subset.as_slice(), p.x.as_slice()));
-    let (before, after, consistent, steps) = models.judge(base, &problem, train, val, consistent_x);
+    let (before, after, consistent, steps, series) =
+        models.judge(base, &problem, train, val, consistent_x);
     let std = jackknife_std(&last.loo, last.subset.len());
     let (theta, effects) = estimates(layout, &selection, &after, &std);
     // Per column of the final model (held-at-zero base columns are not among them).
@@ -199,7 +202,6 @@ pub(super) fn assemble(
             })
         })
         .collect();
-    let series = make_series(base, layout, train, val, &before, &after);
     let predictions = val
         .map(|p| predictions(base, layout, p, &before, &after, consistent.as_ref()))
         .transpose()?;
@@ -320,17 +322,31 @@ impl Models {
         train: &[Prepared],
         val: Option<&Prepared>,
         consistent: Option<(&[usize], &[f64])>,
-    ) -> (ModelResult, ModelResult, Option<ModelResult>, Vec<StepRow>) {
+    ) -> (
+        ModelResult,
+        ModelResult,
+        Option<ModelResult>,
+        Vec<StepRow>,
+        Series,
+    ) {
         let layout = &problem.layout;
-        let mut judged: Vec<Judged> = self
-            .fitted
-            .iter()
-            .map(|f| Judged {
-                subset: &f.subset,
-                x: Some(&f.fit.x),
-                loo: Some(&f.loo),
-            })
-            .collect();
+        // Models of the same columns are the same fit (the final model is the step table's last
+        // row): each is judged once, `slot[m]` being model `m`'s place among those judged.
+        let mut judged: Vec<Judged> = Vec::new();
+        let mut slot: Vec<usize> = Vec::new();
+        for (m, f) in self.fitted.iter().enumerate() {
+            match self.fitted[..m].iter().position(|g| g.subset == f.subset) {
+                Some(first) => slot.push(slot[first]),
+                None => {
+                    slot.push(judged.len());
+                    judged.push(Judged {
+                        subset: &f.subset,
+                        x: Some(&f.fit.x),
+                        loo: Some(&f.loo),
+                    });
+                }
+            }
+        }
         // The consistent estimate last, on its columns (the final model's, and any base column
         // least squares held at zero; no held-out refits).
         if let Some((subset, x)) = consistent {
@@ -352,20 +368,50 @@ impl Models {
         } else {
             &[Prediction::Chosen]
         };
-        let mut train_each = raw_sums_each(base, layout, train, blocks, &judged, preds);
-        let mut val_each = val.map(|p| {
-            let one = std::slice::from_ref(p);
-            raw_sums_each(base, layout, one, None, &judged, preds)
-        });
+        // The plot series (rigid and final model) collected by the same passes.
+        let (train_stride, val_stride) = series_strides(train, val);
+        let plotted = [slot[0], slot[1]];
+        let sampling = |stride| Sampling {
+            stride,
+            models: &plotted,
+        };
+        let (mut train_each, train_samples) = raw_sums_sampled(
+            base,
+            layout,
+            train,
+            blocks,
+            &judged,
+            preds,
+            Some(sampling(train_stride)),
+        );
+        let (mut val_each, val_samples) = match val {
+            Some(p) => {
+                let one = std::slice::from_ref(p);
+                let (sums, samples) = raw_sums_sampled(
+                    base,
+                    layout,
+                    one,
+                    None,
+                    &judged,
+                    preds,
+                    Some(sampling(val_stride)),
+                );
+                (Some(sums), Some(samples))
+            }
+            None => (None, None),
+        };
+        let series = Series::from_samples(layout.dof, &train_samples, val_samples.as_deref());
         let state_sums = filtered.then(|| {
             let t = train_each.pop().expect("two predictions");
             (t, val_each.as_mut().and_then(Vec::pop))
         });
         let train_sums = train_each.remove(0);
         let val_sums = val_each.map(|mut v| v.remove(0));
-        let states: Vec<usize> = [0, 1]
+        // Places among those judged.
+        let consistent_slot = judged.len() - 1;
+        let states: Vec<usize> = [slot[0], slot[1]]
             .into_iter()
-            .chain(consistent.map(|_| judged.len() - 1))
+            .chain(consistent.map(|_| consistent_slot))
             .collect();
         let from_states = |m: usize| {
             states.iter().position(|&s| s == m)?;
@@ -377,17 +423,17 @@ impl Models {
         };
         let result = |m: usize| ModelResult {
             terms: self.terms[m].iter().map(Term::label).collect(),
-            train: train_sums.errors(m),
-            validation: val_sums.as_ref().map(|v| v.errors(m)),
-            heldout_rms: train_sums.heldout(m),
-            from_states: from_states(m),
+            train: train_sums.errors(slot[m]),
+            validation: val_sums.as_ref().map(|v| v.errors(slot[m])),
+            heldout_rms: train_sums.heldout(slot[m]),
+            from_states: from_states(slot[m]),
             subset: self.fitted[m].subset.clone(),
             x: self.fitted[m].fit.x.clone(),
         };
         let before = result(0);
         let after = result(1);
         let consistent = consistent.map(|(subset, x)| {
-            let m = self.fitted.len();
+            let m = consistent_slot;
             ModelResult {
                 terms: after.terms.clone(),
                 train: train_sums.errors(m),
@@ -422,7 +468,7 @@ impl Models {
                 validation: m.validation,
             });
         }
-        (before, after, consistent, steps)
+        (before, after, consistent, steps, series)
     }
 }
 

@@ -108,6 +108,43 @@ impl Predicted {
             .apply_many(&mut chans, self.lo == 0, self.hi == p.est.grid.n);
     }
 
+    /// Appends, for every `stride`-th used raw sample of `p` in the core `(a, b)` (the core this
+    /// was built for), one sample: t, q̇ (n, interpolated from the window's estimated states —
+    /// estimated now when the rows came from a table), τ (n), then the prediction of each of
+    /// `sets` (n each).
+    pub(super) fn push_samples(
+        &mut self,
+        p: &Prepared,
+        core: (usize, usize),
+        stride: usize,
+        sets: &[usize],
+        out: &mut Vec<f64>,
+    ) {
+        let n = p.dof();
+        if self.states.is_none() {
+            self.states = Some(p.states(self.lo, self.hi));
+        }
+        let this = &*self;
+        let Some(st) = this.states.as_ref() else {
+            return;
+        };
+        raw_in_core(p, core, stride, |_, t, tau, (k, s)| {
+            out.push(t);
+            let i = k - this.lo;
+            for d in &st.dq[..n] {
+                out.push(if s > 0.0 {
+                    d[i] + s * (d[i + 1] - d[i])
+                } else {
+                    d[i]
+                });
+            }
+            out.extend_from_slice(tau);
+            for &m in sets {
+                out.extend((0..n).map(|j| this.at(m, j, (k, s))));
+            }
+        });
+    }
+
     /// Set `c`'s prediction for joint `j` at grid position `(k, s)` (see [`super::prepare::grid_pos`]).
     pub(super) fn at(&self, c: usize, j: usize, (k, s): (usize, f64)) -> f64 {
         let x = &self.pred[c][j];
@@ -206,6 +243,7 @@ pub(super) fn for_predictions(
         })
         .collect();
     let wanted = vec![true; nm];
+    let all: Vec<usize> = (0..nm).collect();
     // The states are read here (q̇ at each sample): predicted from them, not from a row table.
     let p = &Prepared {
         rows: None,
@@ -220,26 +258,8 @@ pub(super) fn for_predictions(
         if filtered {
             pc.filter(p);
         }
-        let st = pc
-            .states
-            .as_ref()
-            .expect("predicted without a row table, so from the states");
         let mut out = Vec::new();
-        raw_in_core(p, core, stride, |_, t, tau, (k, s)| {
-            out.push(t);
-            let i = k - pc.lo;
-            for d in &st.dq[..n] {
-                out.push(if s > 0.0 {
-                    d[i] + s * (d[i + 1] - d[i])
-                } else {
-                    d[i]
-                });
-            }
-            out.extend_from_slice(tau);
-            for m in 0..nm {
-                out.extend((0..n).map(|j| pc.at(m, j, (k, s))));
-            }
-        });
+        pc.push_samples(p, core, stride, &all, &mut out);
         out
     };
     let mut preds = vec![vec![0.0; n]; nm];
@@ -260,52 +280,43 @@ pub(super) fn for_predictions(
     }
 }
 
-pub(super) fn make_series(
-    base: &BaseModel,
-    layout: &Layout,
-    train: &[Prepared],
-    val: Option<&Prepared>,
-    before: &ModelResult,
-    after: &ModelResult,
-) -> Series {
-    let n = layout.dof;
-    let total: usize = train.iter().map(|p| p.raw_keep.1 - p.raw_keep.0).sum();
-    let stride = total.div_ceil(3000).max(1);
-    let mut rv: Vec<BeforeAfter> = vec![(Vec::new(), Vec::new()); n];
-    for p in train {
-        for_predictions(
-            base,
-            layout,
-            p,
-            &[before, after],
-            stride,
-            |_, dq, tau, pr| {
-                for j in 0..n {
-                    rv[j].0.push((dq[j], tau[j] - pr[0][j]));
-                    rv[j].1.push((dq[j], tau[j] - pr[1][j]));
-                }
-            },
-        );
-    }
-    let mut validation = vec![Vec::new(); n];
-    if let Some(p) = val {
-        let stride = (p.raw_keep.1 - p.raw_keep.0).div_ceil(4000).max(1);
-        for_predictions(
-            base,
-            layout,
-            p,
-            &[before, after],
-            stride,
-            |t, _, tau, pr| {
-                for j in 0..n {
-                    validation[j].push((t, tau[j], pr[0][j], pr[1][j]));
-                }
-            },
-        );
-    }
-    Series {
-        resid_vs_vel: rv,
-        validation,
+/// Strides of the plot series: every how many used raw samples of the training files (about
+/// 3000 points over all) and of the validation file (about 4000) a sample is plotted.
+pub(super) fn series_strides(train: &[Prepared], val: Option<&Prepared>) -> (usize, usize) {
+    let used = |p: &Prepared| p.raw_keep.1 - p.raw_keep.0;
+    let total: usize = train.iter().map(used).sum();
+    (
+        total.div_ceil(3000).max(1),
+        val.map_or(1, |p| used(p).div_ceil(4000).max(1)),
+    )
+}
+
+impl Series {
+    /// The plot series from the samples the judging pass collected ([`Predicted::push_samples`]
+    /// of the rigid and the final model, training files then the validation file).
+    pub(super) fn from_samples(n: usize, train: &[f64], val: Option<&[f64]>) -> Series {
+        let width = 1 + 4 * n;
+        let mut rv: Vec<BeforeAfter> = vec![(Vec::new(), Vec::new()); n];
+        for x in train.chunks_exact(width) {
+            let (dq, tau) = (&x[1..1 + n], &x[1 + n..1 + 2 * n]);
+            let (before, after) = (&x[1 + 2 * n..1 + 3 * n], &x[1 + 3 * n..]);
+            for j in 0..n {
+                rv[j].0.push((dq[j], tau[j] - before[j]));
+                rv[j].1.push((dq[j], tau[j] - after[j]));
+            }
+        }
+        let mut validation = vec![Vec::new(); n];
+        for x in val.unwrap_or_default().chunks_exact(width) {
+            let tau = &x[1 + n..1 + 2 * n];
+            let (before, after) = (&x[1 + 2 * n..1 + 3 * n], &x[1 + 3 * n..]);
+            for j in 0..n {
+                validation[j].push((x[0], tau[j], before[j], after[j]));
+            }
+        }
+        Series {
+            resid_vs_vel: rv,
+            validation,
+        }
     }
 }
 
