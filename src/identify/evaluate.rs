@@ -97,19 +97,30 @@ pub fn raw_sums_each(
     models: &[Judged],
     predictions: &[Prediction],
 ) -> Vec<RawSums> {
-    raw_sums_sampled(base, layout, files, blocks, models, predictions, None).0
+    raw_sums_sampled(
+        base,
+        layout,
+        files,
+        blocks,
+        models,
+        predictions,
+        None,
+        &mut |_| {},
+    )
 }
 
-/// Plot samples asked of [`raw_sums_sampled`]: every `stride`-th used raw sample of each file
-/// with the chosen predictions of the (full-data) `models`.
+/// Samples asked of [`raw_sums_sampled`]: every `stride`-th used raw sample of each file with
+/// the chosen predictions of the (full-data) `models`.
 #[derive(Debug, Clone, Copy)]
 pub struct Sampling<'a> {
     pub stride: usize,
     pub models: &'a [usize],
 }
 
-/// [`raw_sums_each`], collecting in the same pass the samples `sampling` asks for (see
-/// [`super::predict::Predicted::push_samples`]; files in order, each file's samples in order).
+/// [`raw_sums_each`], handing `sink` in the same pass the samples `sampling` asks for (see
+/// [`super::predict::Predicted::push_samples`]): files in order, each file's samples in order,
+/// a few chunks' at a time (memory stays that of a few chunks whatever the files' length).
+#[allow(clippy::too_many_arguments)]
 pub fn raw_sums_sampled(
     base: &BaseModel,
     layout: &Layout,
@@ -118,9 +129,13 @@ pub fn raw_sums_sampled(
     models: &[Judged],
     predictions: &[Prediction],
     sampling: Option<Sampling>,
-) -> (Vec<RawSums>, Vec<f64>) {
+    sink: &mut dyn FnMut(&[f64]),
+) -> Vec<RawSums> {
     let n = layout.dof;
-    let mut samples = Vec::new();
+    let batch = match sampling {
+        Some(_) => 4 * rayon::current_num_threads(),
+        None => usize::MAX,
+    };
     let active: Vec<Vec<usize>> = (0..n).map(|j| layout.active(j)).collect();
     let mut total = vec![RawSums::zero(models.len(), n); predictions.len()];
     let mut offset = 0;
@@ -153,59 +168,64 @@ pub fn raw_sums_sampled(
             let sets = a.models.iter().map(|&m| first_set[m]).collect();
             (a.stride, sets)
         });
-        let parts: Vec<(Vec<RawSums>, Vec<f64>)> = raw_cores(p)
-            .par_iter()
-            .map(|&core| {
-                let mut rows = Rows::new(base, layout);
-                // Only the blocks this chunk's samples can fall in (filter margins included).
-                let (b0, b1) = (
-                    p.block_of(core.0.saturating_sub(1), nblocks),
-                    p.block_of(core.1, nblocks),
-                );
-                let mut wanted = vec![false; sets.len()];
-                for (m, model) in models.iter().enumerate() {
-                    let full = usize::from(model.x.is_some());
-                    wanted[first_set[m]] |= full == 1;
-                    if model.loo.is_some() {
-                        for blk in b0..=b1 {
-                            wanted[first_set[m] + full + blk] = true;
+        let cores = raw_cores(p);
+        for cores in cores.chunks(batch) {
+            let parts: Vec<(Vec<RawSums>, Vec<f64>)> = cores
+                .par_iter()
+                .map(|&core| {
+                    let mut rows = Rows::new(base, layout);
+                    // Only the blocks this chunk's samples can fall in (filter margins included).
+                    let (b0, b1) = (
+                        p.block_of(core.0.saturating_sub(1), nblocks),
+                        p.block_of(core.1, nblocks),
+                    );
+                    let mut wanted = vec![false; sets.len()];
+                    for (m, model) in models.iter().enumerate() {
+                        let full = usize::from(model.x.is_some());
+                        wanted[first_set[m]] |= full == 1;
+                        if model.loo.is_some() {
+                            for blk in b0..=b1 {
+                                wanted[first_set[m] + full + blk] = true;
+                            }
                         }
                     }
+                    let any_filtered = filtered.iter().any(|&f| f)
+                        || (sampled.is_some() && p.smoothing.filtered_prediction);
+                    let mut pc =
+                        Predicted::new(p, &mut rows, &active, core, &sets, &wanted, any_filtered);
+                    let mut out = vec![RawSums::zero(models.len(), n); predictions.len()];
+                    let mut picked = Vec::new();
+                    for pass in [false, true] {
+                        if pass {
+                            if !any_filtered {
+                                break;
+                            }
+                            pc.filter(p);
+                        }
+                        for (sums, _) in out.iter_mut().zip(&filtered).filter(|(_, &f)| f == pass) {
+                            add_core(sums, p, core, nblocks, models, &first_set, &pc);
+                        }
+                        if let Some((stride, sets)) = &sampled {
+                            if pass == p.smoothing.filtered_prediction {
+                                pc.push_samples(p, core, *stride, sets, &mut picked);
+                            }
+                        }
+                    }
+                    (out, picked)
+                })
+                .collect();
+            for (part, picked) in &parts {
+                for (t, s) in total.iter_mut().zip(part) {
+                    t.add(s);
                 }
-                let any_filtered = filtered.iter().any(|&f| f)
-                    || (sampled.is_some() && p.smoothing.filtered_prediction);
-                let mut pc =
-                    Predicted::new(p, &mut rows, &active, core, &sets, &wanted, any_filtered);
-                let mut out = vec![RawSums::zero(models.len(), n); predictions.len()];
-                let mut picked = Vec::new();
-                for pass in [false, true] {
-                    if pass {
-                        if !any_filtered {
-                            break;
-                        }
-                        pc.filter(p);
-                    }
-                    for (sums, _) in out.iter_mut().zip(&filtered).filter(|(_, &f)| f == pass) {
-                        add_core(sums, p, core, nblocks, models, &first_set, &pc);
-                    }
-                    if let Some((stride, sets)) = &sampled {
-                        if pass == p.smoothing.filtered_prediction {
-                            pc.push_samples(p, core, *stride, sets, &mut picked);
-                        }
-                    }
+                if !picked.is_empty() {
+                    sink(picked);
                 }
-                (out, picked)
-            })
-            .collect();
-        for (part, picked) in &parts {
-            for (t, s) in total.iter_mut().zip(part) {
-                t.add(s);
             }
-            samples.extend_from_slice(picked);
         }
         offset += nblocks;
     }
-    (total, samples)
+    total
 }
 
 /// Adds the residuals of one core's raw samples to `sums` (predictions `pc`).

@@ -11,7 +11,7 @@ use super::layout::{Layout, Merged};
 use super::load_stage::{load_model, LoadModel};
 use super::ls;
 use super::physical::{self, Physical};
-use super::predict::{predictions, series_strides, Predictions, Series};
+use super::predict::{series_strides, PredictionSink, Predictions, Series};
 use super::prepare::{Prepared, Smoothing};
 use super::problem::{with_hint, Problem};
 use super::regress::decimation;
@@ -176,8 +176,14 @@ pub(super) fn assemble(
     let consistent_x = physical
         .as_ref()
         .map(|p| (p.subset.as_slice(), p.x.as_slice()));
-    let (before, after, consistent, steps, series) =
-        models.judge(base, &problem, train, val, consistent_x);
+    let Judgement {
+        before,
+        after,
+        consistent,
+        steps,
+        series,
+        predictions,
+    } = models.judge(base, &problem, train, val, consistent_x)?;
     let std = jackknife_std(&last.loo, last.subset.len());
     let (theta, effects) = estimates(layout, &selection, &after, &std);
     // Per column of the final model (held-at-zero base columns are not among them).
@@ -202,9 +208,6 @@ pub(super) fn assemble(
             })
         })
         .collect();
-    let predictions = val
-        .map(|p| predictions(base, layout, p, &before, &after, consistent.as_ref()))
-        .transpose()?;
     let sigma = last.w.iter().map(|w| 1.0 / w).collect();
     let load_model = load_model(layout, &selection.terms, &last.subset, &after.x);
     let fit = &last.fit;
@@ -249,6 +252,17 @@ pub(super) fn assemble(
             .collect(),
         undetermined,
     })
+}
+
+/// What [`Models::judge`] finds: the rigid (`before`), final (`after`) and consistent models'
+/// errors, the step table, the plot series and the validation file's predictions.
+struct Judgement {
+    before: ModelResult,
+    after: ModelResult,
+    consistent: Option<ModelResult>,
+    steps: Vec<StepRow>,
+    series: Series,
+    predictions: Option<Predictions>,
 }
 
 /// The models reported — rigid, the final one, and rigid → +declared → +each added effect —
@@ -322,13 +336,7 @@ impl Models {
         train: &[Prepared],
         val: Option<&Prepared>,
         consistent: Option<(&[usize], &[f64])>,
-    ) -> (
-        ModelResult,
-        ModelResult,
-        Option<ModelResult>,
-        Vec<StepRow>,
-        Series,
-    ) {
+    ) -> Result<Judgement, IdentifyError> {
         let layout = &problem.layout;
         // Models of the same columns are the same fit (the final model is the step table's last
         // row): each is judged once, `slot[m]` being model `m`'s place among those judged.
@@ -368,51 +376,57 @@ impl Models {
         } else {
             &[Prediction::Chosen]
         };
-        // The plot series (rigid and final model) collected by the same passes.
+        // The rigid, final and consistent models' places among those judged.
+        let consistent_slot = judged.len() - 1;
+        let states: Vec<usize> = [slot[0], slot[1]]
+            .into_iter()
+            .chain(consistent.map(|_| consistent_slot))
+            .collect();
+        // The same passes collect the plot series (rigid and final model) and, of the
+        // validation file, every sample for the predictions table (and its plot).
         let (train_stride, val_stride) = series_strides(train, val);
-        let plotted = [slot[0], slot[1]];
-        let sampling = |stride| Sampling {
-            stride,
-            models: &plotted,
-        };
-        let (mut train_each, train_samples) = raw_sums_sampled(
+        let mut train_samples = Vec::new();
+        let mut train_each = raw_sums_sampled(
             base,
             layout,
             train,
             blocks,
             &judged,
             preds,
-            Some(sampling(train_stride)),
+            Some(Sampling {
+                stride: train_stride,
+                models: &states[..2],
+            }),
+            &mut |s| train_samples.extend_from_slice(s),
         );
-        let (mut val_each, val_samples) = match val {
+        let (mut val_each, val_out) = match val {
             Some(p) => {
-                let one = std::slice::from_ref(p);
-                let (sums, samples) = raw_sums_sampled(
+                let mut sink = PredictionSink::new(layout.dof, states.len(), val_stride);
+                let sums = raw_sums_sampled(
                     base,
                     layout,
-                    one,
+                    std::slice::from_ref(p),
                     None,
                     &judged,
                     preds,
-                    Some(sampling(val_stride)),
+                    Some(Sampling {
+                        stride: 1,
+                        models: &states,
+                    }),
+                    &mut |s| sink.take(s),
                 );
-                (Some(sums), Some(samples))
+                (Some(sums), Some(sink.finish()?))
             }
             None => (None, None),
         };
-        let series = Series::from_samples(layout.dof, &train_samples, val_samples.as_deref());
+        let (predictions, val_plotted) = val_out.unzip();
+        let series = Series::from_samples(layout.dof, &train_samples, val_plotted.as_deref());
         let state_sums = filtered.then(|| {
             let t = train_each.pop().expect("two predictions");
             (t, val_each.as_mut().and_then(Vec::pop))
         });
         let train_sums = train_each.remove(0);
         let val_sums = val_each.map(|mut v| v.remove(0));
-        // Places among those judged.
-        let consistent_slot = judged.len() - 1;
-        let states: Vec<usize> = [slot[0], slot[1]]
-            .into_iter()
-            .chain(consistent.map(|_| consistent_slot))
-            .collect();
         let from_states = |m: usize| {
             states.iter().position(|&s| s == m)?;
             let (t, v) = state_sums.as_ref()?;
@@ -468,7 +482,14 @@ impl Models {
                 validation: m.validation,
             });
         }
-        (before, after, consistent, steps, series)
+        Ok(Judgement {
+            before,
+            after,
+            consistent,
+            steps,
+            series,
+            predictions,
+        })
     }
 }
 

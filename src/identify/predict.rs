@@ -4,13 +4,8 @@
 
 use std::sync::Arc;
 
-use rayon::prelude::*;
-
-use super::base::BaseModel;
-use super::evaluate::ModelResult;
-use super::layout::Layout;
 use super::ls;
-use super::prepare::{raw_cores, raw_in_core, Prepared};
+use super::prepare::{raw_in_core, Prepared};
 use super::rows::Rows;
 use super::IdentifyError;
 use crate::derivative::States;
@@ -219,67 +214,6 @@ impl Predictions {
     }
 }
 
-/// Calls `f(t, dq, tau, preds)` for every `stride`-th used raw sample of `p`, in order, with the
-/// predictions of each model (see [`Predicted`]; `preds[m]` per joint), the estimated q̇ at the
-/// sample and its measured τ. Chunks are predicted in parallel, a few at a time (memory stays
-/// that of a few chunks whatever the log's length).
-pub(super) fn for_predictions(
-    base: &BaseModel,
-    layout: &Layout,
-    p: &Prepared,
-    models: &[&ModelResult],
-    stride: usize,
-    mut f: impl FnMut(f64, &[f64], &[f64], &[Vec<f64>]),
-) {
-    let n = layout.dof;
-    let nm = models.len();
-    let active: Vec<Vec<usize>> = (0..n).map(|j| layout.active(j)).collect();
-    let coef: Vec<Vec<Vec<f64>>> = models
-        .iter()
-        .map(|m| {
-            (0..n)
-                .map(|j| spread(&active[j], &m.subset, &m.x))
-                .collect()
-        })
-        .collect();
-    let wanted = vec![true; nm];
-    let all: Vec<usize> = (0..nm).collect();
-    // The states are read here (q̇ at each sample): predicted from them, not from a row table.
-    let p = &Prepared {
-        rows: None,
-        ..p.clone()
-    };
-    // One sample: t, q̇ (n), τ (n), then each model's prediction (n each).
-    let width = 1 + 2 * n + nm * n;
-    let chunk = |core: (usize, usize)| -> Vec<f64> {
-        let mut rows = Rows::new(base, layout);
-        let filtered = p.smoothing.filtered_prediction;
-        let mut pc = Predicted::new(p, &mut rows, &active, core, &coef, &wanted, filtered);
-        if filtered {
-            pc.filter(p);
-        }
-        let mut out = Vec::new();
-        pc.push_samples(p, core, stride, &all, &mut out);
-        out
-    };
-    let mut preds = vec![vec![0.0; n]; nm];
-    for batch in raw_cores(p).chunks(2 * rayon::current_num_threads()) {
-        let done: Vec<Vec<f64>> = batch.par_iter().map(|&c| chunk(c)).collect();
-        for sample in done.iter().flat_map(|d| d.chunks_exact(width)) {
-            for (m, pm) in preds.iter_mut().enumerate() {
-                let at = 1 + 2 * n + m * n;
-                pm.copy_from_slice(&sample[at..at + n]);
-            }
-            f(
-                sample[0],
-                &sample[1..1 + n],
-                &sample[1 + n..1 + 2 * n],
-                &preds,
-            );
-        }
-    }
-}
-
 /// Strides of the plot series: every how many used raw samples of the training files (about
 /// 3000 points over all) and of the validation file (about 4000) a sample is plotted.
 pub(super) fn series_strides(train: &[Prepared], val: Option<&Prepared>) -> (usize, usize) {
@@ -320,35 +254,65 @@ impl Series {
     }
 }
 
-pub(super) fn predictions(
-    base: &BaseModel,
-    layout: &Layout,
-    p: &Prepared,
-    before: &ModelResult,
-    after: &ModelResult,
-    consistent: Option<&ModelResult>,
-) -> Result<Predictions, IdentifyError> {
-    let n = layout.dof;
-    let models: Vec<&ModelResult> = [before, after].into_iter().chain(consistent).collect();
-    let width = 1 + (1 + models.len()) * n;
-    let mut table = TableWriter::new(width, SPILL_ROWS);
-    let (mut row, mut failed) = (Vec::with_capacity(width), None);
-    for_predictions(base, layout, p, &models, 1, |t, _, tau, pr| {
-        row.clear();
-        row.push(t);
-        row.extend(tau.iter().chain(pr.iter().flatten()));
-        if let Err(e) = table.push(&row) {
-            failed.get_or_insert(e);
+/// The validation file's samples as the judging pass hands them over (every used raw sample:
+/// t, q̇, τ, then the rigid, final and — when stage 8 ran — consistent models' predictions),
+/// written to the [`Predictions`] table (spilled to a temporary file for a long log) with every
+/// `stride`-th one kept for the validation plot.
+pub(super) struct PredictionSink {
+    dof: usize,
+    models: usize,
+    table: TableWriter,
+    row: Vec<f64>,
+    failed: Option<std::io::Error>,
+    stride: usize,
+    seen: usize,
+    plotted: Vec<f64>,
+}
+
+impl PredictionSink {
+    pub(super) fn new(dof: usize, models: usize, stride: usize) -> Self {
+        PredictionSink {
+            dof,
+            models,
+            table: TableWriter::new(1 + (1 + models) * dof, SPILL_ROWS),
+            row: Vec::new(),
+            failed: None,
+            stride: stride.max(1),
+            seen: 0,
+            plotted: Vec::new(),
         }
-    });
-    let table = match failed {
-        Some(e) => Err(e),
-        None => table.finish(),
     }
-    .map_err(IdentifyError::Spill)?;
-    Ok(Predictions {
-        dof: n,
-        consistent: consistent.is_some(),
-        table: Arc::new(table),
-    })
+
+    /// Whole samples, in order.
+    pub(super) fn take(&mut self, samples: &[f64]) {
+        let n = self.dof;
+        for x in samples.chunks_exact(1 + (2 + self.models) * n) {
+            if self.seen % self.stride == 0 {
+                // The plot's sample: t, q̇, τ, rigid and final model.
+                self.plotted.extend_from_slice(&x[..1 + 4 * n]);
+            }
+            self.seen += 1;
+            self.row.clear();
+            self.row.push(x[0]);
+            self.row.extend_from_slice(&x[1 + n..]);
+            if let Err(e) = self.table.push(&self.row) {
+                self.failed.get_or_insert(e);
+            }
+        }
+    }
+
+    /// The predictions table and the plot's samples (as [`Series::from_samples`] reads them).
+    pub(super) fn finish(self) -> Result<(Predictions, Vec<f64>), IdentifyError> {
+        let table = match self.failed {
+            Some(e) => Err(e),
+            None => self.table.finish(),
+        }
+        .map_err(IdentifyError::Spill)?;
+        let predictions = Predictions {
+            dof: self.dof,
+            consistent: self.models > 2,
+            table: Arc::new(table),
+        };
+        Ok((predictions, self.plotted))
+    }
 }
