@@ -22,8 +22,10 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use crate::arms::ArmSource;
+use crate::derivative::States;
 use crate::dh::{DhTable, JointKind};
 use crate::model::{Model, PARAM_ORDER};
+use crate::pack::{Pack, LANES};
 use crate::reference::{RefModel, Workspace};
 
 /// Numerical base-parameter map of a D-H table (see the module docs).
@@ -45,11 +47,13 @@ pub enum BaseModel {
     Numeric(Box<NumericBase>),
 }
 
-/// Scratch for one evaluation (the numeric path needs the full regressor and an RNEA workspace).
+/// Scratch for one evaluation (the numeric path needs the full regressor and an RNEA workspace;
+/// the lane-batched one its packs).
 #[derive(Debug, Clone)]
 pub struct Scratch {
     ws: Option<Workspace>,
     full: Vec<f64>,
+    packs: Vec<Pack>,
 }
 
 fn full_names(dof: usize) -> Vec<String> {
@@ -243,10 +247,12 @@ impl BaseModel {
             BaseModel::Generated(_) => Scratch {
                 ws: None,
                 full: Vec::new(),
+                packs: Vec::new(),
             },
             BaseModel::Numeric(b) => Scratch {
                 ws: Some(b.model.workspace()),
                 full: vec![0.0; b.model.dof() * b.model.np()],
+                packs: Vec::new(),
             },
         }
     }
@@ -269,6 +275,33 @@ impl BaseModel {
                 }
             }
         }
+    }
+
+    /// The base regressors of the [`LANES`] consecutive states `i..i + LANES` of `st` (indices
+    /// from `st.lo`) at once, lane `l`'s at `out[l·dof·nb..]`: the lane-batched kernel, each lane
+    /// bit for bit [`BaseModel::eval`]'s (`dynid::pack`). `false`, nothing written, where the
+    /// rows do not come from generated kernels.
+    pub fn eval_lanes(&self, s: &mut Scratch, st: &States, i: usize, out: &mut [f64]) -> bool {
+        let BaseModel::Generated(m) = self else {
+            return false;
+        };
+        let n = m.dof();
+        let w = n * m.nb();
+        s.packs.resize(3 * n + w, Pack::default());
+        let (ins, res) = s.packs.split_at_mut(3 * n);
+        let pack = |v: &[f64]| Pack::new(std::array::from_fn(|l| v[i + l]));
+        for j in 0..n {
+            ins[j] = pack(&st.q[j]);
+            ins[n + j] = pack(&st.dq[j]);
+            ins[2 * n + j] = pack(&st.ddq[j]);
+        }
+        let (q, rest) = ins.split_at(n);
+        let (dq, ddq) = rest.split_at(n);
+        m.base_regressor_lanes(q, dq, ddq, res);
+        for (l, o) in out.chunks_exact_mut(w).take(LANES).enumerate() {
+            crate::pack::lane(res, l, o);
+        }
+        true
     }
 
     /// The base-parameter map `K` (`nb × 10·dof`, `θ = K·p`), column `c` the base parameters of

@@ -12,6 +12,7 @@ use super::layout::Layout;
 use super::ls;
 use super::prepare::{cores, Prepared};
 use crate::derivative::States;
+use crate::pack::LANES;
 
 /// Fills regression rows for one state into its own buffer, `row[j * ncols + c]`. A joint's row
 /// holds zeros in the other joints' effect columns: they are never written, so the buffer is
@@ -27,6 +28,13 @@ pub(super) struct Rows<'a> {
     q: Vec<f64>,
     dq: Vec<f64>,
     ddq: Vec<f64>,
+    /// Base regressors of [`LANES`] consecutive states evaluated at once
+    /// ([`BaseModel::eval_lanes`]), and each lane's state (q, q̇, q̈): the passes walk the grid
+    /// in order, so three rows in four come from here — each only for the very state it was
+    /// evaluated at (compared bit for bit), whoever asks.
+    batch_yb: Vec<f64>,
+    batch_state: Vec<f64>,
+    batch_lanes: usize,
 }
 
 impl<'a> Rows<'a> {
@@ -40,6 +48,9 @@ impl<'a> Rows<'a> {
             q: vec![0.0; layout.dof],
             dq: vec![0.0; layout.dof],
             ddq: vec![0.0; layout.dof],
+            batch_yb: vec![0.0; LANES * layout.dof * layout.nb],
+            batch_state: vec![0.0; LANES * 3 * layout.dof],
+            batch_lanes: 0,
         }
     }
 
@@ -66,13 +77,44 @@ impl<'a> Rows<'a> {
         );
         match yb {
             Some(yb) => self.yb.copy_from_slice(yb),
-            None => self
-                .base
-                .eval(&mut self.scratch, &q, &dq, &ddq, &mut self.yb),
+            None => self.eval_batched(st, i, &q, &dq, &ddq),
         }
         self.place(&q, &dq, &ddq);
         (self.q, self.dq, self.ddq) = (q, dq, ddq);
         &self.row
+    }
+
+    /// The base regressor of state `i` of `st` (`q`, `dq`, `ddq`) into `self.yb`: from the
+    /// batch if it holds that state, else with the next states as a new batch where `st` has
+    /// them and the kernels are lane-batched, else alone.
+    fn eval_batched(&mut self, st: &States, i: usize, q: &[f64], dq: &[f64], ddq: &[f64]) {
+        let (n, w) = (self.layout.dof, self.yb.len());
+        let same = |a: &[f64], b: &[f64]| a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits());
+        let held = (0..self.batch_lanes).find(|&l| {
+            let s = &self.batch_state[l * 3 * n..(l + 1) * 3 * n];
+            same(&s[..n], q) && same(&s[n..2 * n], dq) && same(&s[2 * n..], ddq)
+        });
+        if let Some(l) = held {
+            self.yb.copy_from_slice(&self.batch_yb[l * w..(l + 1) * w]);
+            return;
+        }
+        let len = st.q.first().map_or(0, Vec::len);
+        if i + LANES <= len
+            && self
+                .base
+                .eval_lanes(&mut self.scratch, st, i, &mut self.batch_yb)
+        {
+            for (l, s) in self.batch_state.chunks_exact_mut(3 * n).enumerate() {
+                for j in 0..n {
+                    (s[j], s[n + j], s[2 * n + j]) =
+                        (st.q[j][i + l], st.dq[j][i + l], st.ddq[j][i + l]);
+                }
+            }
+            self.batch_lanes = LANES;
+            self.yb.copy_from_slice(&self.batch_yb[..w]);
+        } else {
+            self.base.eval(&mut self.scratch, q, dq, ddq, &mut self.yb);
+        }
     }
 
     /// The rows from the base regressor in `self.yb` and the effect columns of the state.
@@ -425,5 +467,65 @@ mod tests {
             RowTable::new(&p, &base, &other, Some(&g)).rows
         );
         assert_ne!(direct2.rows, direct.rows);
+    }
+
+    /// The lane-batched base regressor serves a row only for the state it was evaluated at:
+    /// rows asked in order, out of order, at the window's end and of another window with the
+    /// same indices all equal the single-sample kernel's, bit for bit.
+    #[test]
+    fn batched_base_rows_are_the_single_sample_kernels_whatever_the_order() {
+        let arm = crate::arms::resolve("puma560").unwrap();
+        let base = BaseModel::for_arm(&arm);
+        let n = base.dof();
+        let nb = base.nb();
+        let layout = Layout {
+            dof: n,
+            nb,
+            base_names: vec![String::new(); nb],
+            base_exprs: vec![String::new(); nb],
+            terms: Vec::new(),
+            scales: vec![Scales::from_rms_velocity(1.0); n],
+            base_active: vec![(0..nb).collect(); n],
+            fixed: Vec::new(),
+            load: Vec::new(),
+        };
+        let window = |seed: u64| {
+            let mut v = seed;
+            let mut next = move || {
+                v = v
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                (v >> 11) as f64 / (1u64 << 53) as f64 * 4.0 - 2.0
+            };
+            let mut col = || (0..10).map(|_| next()).collect::<Vec<f64>>();
+            States {
+                lo: 100,
+                q: (0..n).map(|_| col()).collect(),
+                dq: (0..n).map(|_| col()).collect(),
+                ddq: (0..n).map(|_| col()).collect(),
+            }
+        };
+        let (a, b) = (window(1), window(2));
+        let mut rows = Rows::new(&base, &layout);
+        let mut scratch = base.scratch();
+        let mut want = vec![0.0; n * nb];
+        let order = [0, 1, 2, 3, 4, 9, 8, 7, 5, 5, 6, 2, 0];
+        for (st, k) in order
+            .iter()
+            .map(|&k| (&a, k))
+            .chain(order.iter().map(|&k| (&b, k)))
+        {
+            let s = |v: &Vec<Vec<f64>>| (0..n).map(|j| v[j][k]).collect::<Vec<f64>>();
+            base.eval(&mut scratch, &s(&st.q), &s(&st.dq), &s(&st.ddq), &mut want);
+            let got = rows.fill_grid(st, st.lo + k);
+            let nc = layout.ncols();
+            for j in 0..n {
+                let (g, w) = (&got[j * nc..j * nc + nb], &want[j * nb..(j + 1) * nb]);
+                assert!(
+                    g.iter().zip(w).all(|(x, y)| x.to_bits() == y.to_bits()),
+                    "k = {k}"
+                );
+            }
+        }
     }
 }
