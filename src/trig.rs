@@ -76,7 +76,31 @@ const SIGN: u64 = 1 << 63;
 /// `(sin x, cos x)` (see the module docs; the same values as a lane of [`sin_cos_n`]).
 #[inline(always)]
 pub fn sin_cos(x: f64) -> (f64, f64) {
-    let (s, c) = sin_cos_n(&[x]);
+    // `sin_cos_n(&[x])` in effect, but the rare paths take `x` by value, in a register: passing
+    // them an array (or a reference) made every call store `x` to the stack first, in the hot
+    // path — six times per PUMA 560 kernel.
+    // NaN fails the comparison too.
+    let fast = x.abs() <= FAST_PATH_MAX;
+    if !fast {
+        return sin_cos_std_one(x);
+    }
+    let (s, c) = sin_cos_lanes_with([x, 0.0, 0.0, 0.0], || {
+        let (s, c) = sin_cos_exact_one(x);
+        ([s, 0.0, 0.0, 0.0], [c, 0.0, 0.0, 0.0])
+    });
+    (s[0], c[0])
+}
+
+#[cold]
+#[inline(never)]
+fn sin_cos_std_one(x: f64) -> (f64, f64) {
+    (x.sin(), x.cos())
+}
+
+#[cold]
+#[inline(never)]
+fn sin_cos_exact_one(x: f64) -> (f64, f64) {
+    let (s, c) = sin_cos_lanes_exact([x, 0.0, 0.0, 0.0]);
     (s[0], c[0])
 }
 
@@ -147,6 +171,13 @@ fn map2(a: &Lanes, b: &Lanes, f: impl Fn(f64, f64) -> f64) -> Lanes {
 /// statement over whole arrays so that every step is one vector instruction.
 #[inline(always)]
 fn sin_cos_lanes(x: Lanes) -> (Lanes, Lanes) {
+    sin_cos_lanes_with(x, || sin_cos_lanes_exact(x))
+}
+
+/// [`sin_cos_lanes`], with `exact` (which must equal [`sin_cos_lanes_exact`]`(x)`) called when
+/// a lane lost more than 16 bits.
+#[inline(always)]
+fn sin_cos_lanes_with(x: Lanes, exact: impl FnOnce() -> (Lanes, Lanes)) -> (Lanes, Lanes) {
     let ax = x.map(f64::abs);
     let t = ax.map(|a| mul_add(a, INV_PIO2, TOINT));
     let f = t.map(|t| t - TOINT);
@@ -159,7 +190,7 @@ fn sin_cos_lanes(x: Lanes) -> (Lanes, Lanes) {
         cancelled |= y0[l].abs() < ax[l] * CANCEL_16;
     }
     if cancelled {
-        return sin_cos_lanes_exact(x);
+        return exact();
     }
     let y1 = {
         let d = map2(&r, &y0, |r, y| r - y);
