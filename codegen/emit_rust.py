@@ -42,12 +42,24 @@ def emit(f: ca.Function, input_name: Callable[[int, int], str], n_out: int, out:
     n_mul = n_add = 0
     counter = 0
 
-    def fresh(expr: str) -> str:
+    # Value numbering up to commutativity: CasADi's `cse` merges only identical operand orders, so
+    # `a * b` and `b * a` (or `a + b`, `b + a`) were emitted twice. IEEE addition and
+    # multiplication are exactly commutative, so reusing the first changes no value.
+    known: dict[tuple[str, ...], str] = {}
+
+    def fresh(expr: str, key: tuple[str, ...]) -> tuple[str, bool]:
         nonlocal counter
+        if key in known:
+            return known[key], False
         name = f"x{counter}"
         counter += 1
         lines.append(f"let {name} = {expr};")
-        return name
+        known[key] = name
+        return name, True
+
+    def binary(sym: str, a: str, b: str) -> tuple[str, bool]:
+        key = (sym, *sorted((a, b))) if sym in ("+", "*") else (sym, a, b)
+        return fresh(f"{a} {sym} {b}", key)
 
     for k in range(f.n_instructions()):
         op = f.instruction_id(k)
@@ -62,34 +74,26 @@ def emit(f: ca.Function, input_name: Callable[[int, int], str], n_out: int, out:
             idx = outs[1]
             lines.append(f"{out}[{idx}] = {slot[ins[0]]};")
             written.add(idx)
-        elif op in BINARY:
-            slot[outs[0]] = fresh(f"{slot[ins[0]]} {BINARY[op]} {slot[ins[1]]}")
-        elif op == ca.OP_NEG:
-            slot[outs[0]] = fresh(f"-{slot[ins[0]]}")
-        elif op == ca.OP_SQ:
-            slot[outs[0]] = fresh(f"{slot[ins[0]]} * {slot[ins[0]]}")
-        elif op == ca.OP_TWICE:
-            slot[outs[0]] = fresh(f"2.0 * {slot[ins[0]]}")
         elif op == ca.OP_ASSIGN:
             slot[outs[0]] = slot[ins[0]]
+            continue
         else:
-            raise NotImplementedError(f"CasADi operation {op} has no Rust translation")
-        if op in MULS:
-            n_mul += 1
-        elif op in ADDS:
-            n_add += 1
+            if op in BINARY:
+                name, new = binary(BINARY[op], slot[ins[0]], slot[ins[1]])
+            elif op == ca.OP_NEG:
+                name, new = fresh(f"-{slot[ins[0]]}", ("neg", slot[ins[0]]))
+            elif op == ca.OP_SQ:
+                name, new = binary("*", slot[ins[0]], slot[ins[0]])
+            elif op == ca.OP_TWICE:
+                name, new = binary("*", "2.0", slot[ins[0]])
+            else:
+                raise NotImplementedError(f"CasADi operation {op} has no Rust translation")
+            slot[outs[0]] = name
+            if new and op in MULS:
+                n_mul += 1
+            elif new and op in ADDS:
+                n_add += 1
     for idx in range(n_out):
         if idx not in written:
             lines.append(f"{out}[{idx}] = 0.0;")
     return Body(lines, n_mul, n_add, used)
-
-
-def count(f: ca.Function) -> tuple[int, int]:
-    n_mul = n_add = 0
-    for k in range(f.n_instructions()):
-        op = f.instruction_id(k)
-        if op in MULS:
-            n_mul += 1
-        elif op in ADDS:
-            n_add += 1
-    return n_mul, n_add
