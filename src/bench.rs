@@ -7,8 +7,9 @@
 //! `q̈ ~ U(−5, 5)`; call `i` uses sample `i mod 1024`; one repetition is `N` consecutive calls
 //! with `N` calibrated to last [`Settings::target`] and rounded to whole passes over the pool; one
 //! warm-up repetition, then [`Settings::reps`] timed ones; the median of elapsed/N is reported in
-//! ns per call, single thread. Inputs go through [`std::hint::black_box`] so nothing is hoisted
-//! or folded. `cargo bench` (criterion, `benches/kernels.rs`) is the careful measurement; this is
+//! ns per call, single thread. The kernel is chosen once per timing loop and called through the
+//! `Model` trait (an opaque call per sample, as a user's loop makes it); the reference's inputs
+//! go through [`std::hint::black_box`] so nothing is hoisted or folded. `cargo bench` (criterion, `benches/kernels.rs`) is the careful measurement; this is
 //! the quick one (a few seconds plus about one for the identification). Each kernel is also timed
 //! lane-batched ([`crate::pack`]: `LANES` samples per call from the same pool), reported per
 //! sample.
@@ -208,6 +209,39 @@ pub fn plausible_params(dof: usize, seed: u64) -> Vec<f64> {
         ]);
     }
     p
+}
+
+/// Times one generated kernel, single call and lane-batched (ns per call, ns per sample), with
+/// the kernel chosen once, outside the timing loops ([`Kernel::with`](crate::model::Kernel::with)):
+/// each call is then one call through the `Model` trait on the pool sample's slices, as a user's
+/// loop would make it — and as SymPyBotics' harness calls its C through a function pointer.
+struct TimeGenerated<'a> {
+    case: &'a Case,
+    settings: &'a Settings,
+}
+
+impl crate::model::KernelVisitor for TimeGenerated<'_> {
+    type Output = (f64, f64);
+
+    fn visit<K: crate::model::KernelCall>(self) -> (f64, f64) {
+        let case = self.case;
+        let len = case.out_len(K::KERNEL);
+        // The arm through `black_box`: its calls stay calls through the trait.
+        let (arm, pool, theta) = (black_box(case.arm), &case.pool, &case.theta[..]);
+        let mut buf = vec![0.0; len];
+        let single = time_per_call(self.settings, |i| {
+            K::call(arm, pool.q(i), pool.dq(i), pool.ddq(i), theta, &mut buf);
+            black_box(&mut buf);
+        });
+        let mut packs = vec![Pack::default(); len];
+        let theta = &case.theta_packed[..];
+        let lanes = time_per_call(self.settings, |c| {
+            let [q, dq, ddq] = &case.packed[c % case.packed.len()];
+            K::call_lanes(arm, q, dq, ddq, theta, &mut packs);
+            black_box(&mut packs);
+        });
+        (single, lanes / LANES as f64)
+    }
 }
 
 /// Nanoseconds per call of `f(i)` for `i = 0, 1, 2, …` (median over repetitions; see the module
@@ -522,16 +556,11 @@ pub fn measure_arm(
                 kernel: kernel.name(),
             });
         }
-        let mut buf = vec![0.0; case.out_len(kernel)];
-        let generated_ns = time_per_call(settings, |i| {
-            case.call_generated(kernel, i, &mut buf);
-            black_box(&mut buf);
+        let (generated_ns, lanes_ns) = kernel.with(TimeGenerated {
+            case: &case,
+            settings,
         });
-        let mut packs = vec![Pack::default(); case.out_len(kernel)];
-        let lanes_ns = time_per_call(settings, |c| {
-            case.call_lanes(kernel, c, &mut packs);
-            black_box(&mut packs);
-        }) / LANES as f64;
+        let mut buf = vec![0.0; case.out_len(kernel)];
         let reference_ns = time_per_call(settings, |i| {
             case.call_reference(&mut reference, kernel, i, &mut buf);
             black_box(&mut buf);

@@ -71,5 +71,6 @@ pub trait Model: Send + Sync {
     fn base_params(&self, p: &[f64], out: &mut [f64]);
 }
 
-// `Kernel`: one variant per kernel kind, with `ALL`, `name`, `out_len`, `call` and `call_lanes`.
+// `Kernel`: one variant per kernel kind, with `ALL`, `name`, `out_len`, `call`, `call_lanes` and
+// `with` (a kind fixed at compile time: `KernelCall`, `KernelVisitor`, `kernel_calls`).
 dynid_macros::kernel_enum!();

@@ -533,6 +533,87 @@ pub fn kernel_enum(input: TokenStream) -> TokenStream {
                         #(Kernel::#variants => model.#lanes(#(#args,)* out),)*
                     }
                 }
+
+                /// Runs `v` with this kernel kind as a type ([`KernelCall`]): a loop that calls
+                /// one kernel many times chooses it once, outside the loop, instead of matching
+                /// on the kind at every call as [`Kernel::call`] does.
+                #[inline]
+                pub fn with<V: KernelVisitor>(self, v: V) -> V::Output {
+                    match self {
+                        #(Kernel::#variants => v.visit::<kernel_calls::#variants>(),)*
+                    }
+                }
+            }
+
+            /// One kernel kind as a type: [`Kernel::call`] and [`Kernel::call_lanes`] of a kind
+            /// fixed at compile time (see [`Kernel::with`]).
+            pub trait KernelCall {
+                /// The kind.
+                const KERNEL: Kernel;
+                /// [`Kernel::call`] of this kind.
+                fn call(
+                    model: &dyn Model,
+                    q: &[f64],
+                    dq: &[f64],
+                    ddq: &[f64],
+                    theta: &[f64],
+                    out: &mut [f64],
+                );
+                /// [`Kernel::call_lanes`] of this kind.
+                fn call_lanes(
+                    model: &dyn Model,
+                    q: &[crate::pack::Pack],
+                    dq: &[crate::pack::Pack],
+                    ddq: &[crate::pack::Pack],
+                    theta: &[crate::pack::Pack],
+                    out: &mut [crate::pack::Pack],
+                );
+            }
+
+            /// Work to run with a kernel kind fixed at compile time ([`Kernel::with`]).
+            pub trait KernelVisitor {
+                /// What the work returns.
+                type Output;
+                /// The work, for kernel kind `K`.
+                fn visit<K: KernelCall>(self) -> Self::Output;
+            }
+
+            /// One zero-sized type per kernel kind, implementing [`KernelCall`].
+            pub mod kernel_calls {
+                use super::{Kernel, KernelCall, Model};
+                #(
+                    #[doc = #docs]
+                    #[derive(Debug, Clone, Copy)]
+                    pub struct #variants;
+
+                    impl KernelCall for #variants {
+                        const KERNEL: Kernel = Kernel::#variants;
+                        #[inline(always)]
+                        fn call(
+                            model: &dyn Model,
+                            q: &[f64],
+                            dq: &[f64],
+                            ddq: &[f64],
+                            theta: &[f64],
+                            out: &mut [f64],
+                        ) {
+                            let _ = (q, dq, ddq, theta);
+                            model.#methods(#(#args,)* out)
+                        }
+                        #[inline(always)]
+                        fn call_lanes(
+                            model: &dyn Model,
+                            q: &[crate::pack::Pack],
+                            dq: &[crate::pack::Pack],
+                            ddq: &[crate::pack::Pack],
+                            theta: &[crate::pack::Pack],
+                            out: &mut [crate::pack::Pack],
+                        ) {
+                            let _ = (q, dq, ddq, theta);
+                            model.#lanes(#(#args,)* out)
+                        }
+                    }
+                )*
             }
         })
     }))

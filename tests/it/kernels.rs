@@ -180,3 +180,56 @@ fn lane_kernels_equal_the_scalar_kernels_bit_for_bit() {
         }
     }
 }
+
+/// `Kernel::with` hands its visitor the very kind it was called on, whose `KernelCall` type calls
+/// the same kernel as `Kernel::call` and `Kernel::call_lanes` (the bench's timing loops choose
+/// the kernel this way, once per loop): same kind, same outputs bit for bit, for every arm.
+#[test]
+fn kernel_with_visits_the_kind_it_was_called_on() {
+    use dynid::model::{KernelCall, KernelVisitor};
+    use dynid::pack::{lane, Pack};
+    struct Probe<'a> {
+        m: &'a dyn Model,
+        s: &'a [Vec<f64>; 4],
+        len: usize,
+    }
+    impl KernelVisitor for Probe<'_> {
+        type Output = (Kernel, Vec<f64>, Vec<Pack>);
+        fn visit<K: KernelCall>(self) -> Self::Output {
+            let s = self.s;
+            let mut out = vec![0.0; self.len];
+            K::call(self.m, &s[0], &s[1], &s[2], &s[3], &mut out);
+            let p: Vec<Vec<Pack>> = s
+                .iter()
+                .map(|v| v.iter().map(|&x| Pack::splat(x)).collect())
+                .collect();
+            let mut lanes = vec![Pack::default(); self.len];
+            K::call_lanes(self.m, &p[0], &p[1], &p[2], &p[3], &mut lanes);
+            (K::KERNEL, out, lanes)
+        }
+    }
+    let mut r = rng(91);
+    for &m in dynid::arms::all() {
+        let (q, dq, ddq) = random_state(&mut r, m.dof());
+        let theta: Vec<f64> = (0..m.nb()).map(|_| r.gen_range(-2.0..2.0)).collect();
+        let s = [q, dq, ddq, theta];
+        for kernel in Kernel::ALL {
+            let len = kernel.out_len(m.dof(), m.np(), m.nb());
+            let (kind, got, lanes) = kernel.with(Probe { m, s: &s, len });
+            assert_eq!(kind, kernel, "{}", m.name());
+            let mut want = vec![0.0; len];
+            kernel.call(m, &s[0], &s[1], &s[2], &s[3], &mut want);
+            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&got), bits(&want), "{} {}", m.name(), kernel.name());
+            let mut first = vec![0.0; len];
+            lane(&lanes, 0, &mut first);
+            assert_eq!(
+                bits(&first),
+                bits(&want),
+                "{} {} lanes",
+                m.name(),
+                kernel.name()
+            );
+        }
+    }
+}
