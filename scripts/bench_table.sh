@@ -14,7 +14,8 @@
 # printing `pinocchio,<model>,<algo>,<ns>` lines), BENCH_CPU (pin both to one CPU with taskset,
 # passed to the harness as PINBENCH_CPU), DYNID_BENCH_ARGS (extra `dynid bench` options),
 # SYMPYBOTICS_RUN (the optional SymPyBotics anchor; default ../shared/anchors/sympybotics/run.sh,
-# outside the repository: skipped with a note when absent).
+# outside the repository: skipped with a note when absent), SYMPYBOTICS_ROUNDS (interleaved rounds
+# of scripts/bench_sympybotics.py, default 5).
 set -euo pipefail
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -45,29 +46,23 @@ echo "[bench_table] dynid bench ..." >&2
 SB_RUN="${SYMPYBOTICS_RUN:-$ROOT/../shared/anchors/sympybotics/run.sh}"
 if [[ ! -x "$SB_RUN" ]]; then
   echo "[bench_table] note: $SB_RUN not found: no SymPyBotics section (optional)" >&2
-elif echo "[bench_table] SymPyBotics anchor ($SB_RUN) ..." >&2 &&
-  SYMBENCH_CPU="${BENCH_CPU:-}" "$SB_RUN" >docs/sympybotics.txt; then
-  python3 - docs/bench.json docs/sympybotics.txt >>docs/bench.md <<'PY'
-import json, sys
-ours = {(k["arm"], k["kernel"]): k["generated_ns"] for k in json.load(open(sys.argv[1]))["kernels"]}
-kernel = {"tau": "inverse_dynamics", "M": "mass_matrix", "g": "gravity", "H": "regressor", "Hb": "base_regressor"}
-rows = []
-for line in open(sys.argv[2]):
-    f = line.strip().split(",")
-    if len(f) == 4 and f[0] == "sympybotics" and f[2] in kernel and (f[1], kernel[f[2]]) in ours:
-        g = ours[(f[1], kernel[f[2]])]
-        rows.append(f"| {f[1]} | {kernel[f[2]]} | {g:.1f} | {float(f[3]):.1f} | {float(f[3]) / g:.1f}× |")
-if rows:
-    print("\n### SymPyBotics (optional peer)\n")
-    print("SymPyBotics-generated C (symbolic Newton–Euler, straight-line C), timed in the same run right after "
-          "`dynid bench` by `../shared/anchors/sympybotics/run.sh`, which lives outside this repository: "
-          "SymPyBotics commit 5d4613a, `cc -O3 -march=native`, kernels called out of line, median over repetitions "
-          "of ns per call cycling through its own 1024-sample random pool; the same D-H tables but its own "
-          "parameter values and its own choice of base parameters, checked against values stored when the C "
-          "was generated. `c` (Coriolis without gravity) has no counterpart here.\n")
-    print("| arm | kernel | generated | SymPyBotics C | SymPyBotics / generated |\n|---|---|---:|---:|---:|")
-    print("\n".join(rows))
-PY
+elif echo "[bench_table] SymPyBotics anchor ($SB_RUN), ${SYMPYBOTICS_ROUNDS:-5} interleaved rounds ..." >&2 &&
+  python3 scripts/bench_sympybotics.py --dynid target/release/dynid --anchor "$SB_RUN" \
+    --rounds "${SYMPYBOTICS_ROUNDS:-5}" --markdown docs/sympybotics.md >/dev/null; then
+  {
+    echo
+    echo "### SymPyBotics (optional peer)"
+    echo
+    echo "SymPyBotics-generated C (symbolic Newton–Euler, straight-line C), from \`../shared/anchors/sympybotics/run.sh\`,"
+    echo "which lives outside this repository: SymPyBotics commit 5d4613a, \`cc -O3 -march=native\`, each kernel called"
+    echo "out of line through a function pointer, median over repetitions of ns per call cycling through its own"
+    echo "1024-sample random pool; the same D-H tables but its own parameter values and base parameters, checked"
+    echo "against values stored when the C was generated (\`c\`, Coriolis without gravity, has no counterpart here)."
+    echo "Ours: \`dynid bench --arm <arm>\` (one call through the \`Model\` trait). Measured by"
+    echo "\`scripts/bench_sympybotics.py\` in interleaved rounds, apart from the table above:"
+    echo
+    cat docs/sympybotics.md
+  } >>docs/bench.md
 else
   echo "[bench_table] note: the SymPyBotics anchor failed: no SymPyBotics section (optional)" >&2
 fi
