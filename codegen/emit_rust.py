@@ -11,6 +11,8 @@ from dataclasses import dataclass
 
 import casadi as ca
 
+from .schedule import schedule
+
 BINARY = {ca.OP_ADD: "+", ca.OP_SUB: "-", ca.OP_MUL: "*", ca.OP_DIV: "/"}
 MULS = {ca.OP_MUL, ca.OP_DIV, ca.OP_SQ, ca.OP_TWICE}
 ADDS = {ca.OP_ADD, ca.OP_SUB}
@@ -33,8 +35,11 @@ def literal(x: float) -> str:
     return f"({text})" if x < 0 else text
 
 
-def emit(f: ca.Function, input_name: Callable[[int, int], str], n_out: int, out: str = "out") -> Body:
-    """Body of a Rust function evaluating f's single output into `out[0..n_out]`."""
+def emit(
+    f: ca.Function, input_name: Callable[[int, int], str], n_out: int, out: str = "out", reorder: bool = True
+) -> Body:
+    """Body of a Rust function evaluating f's single output into `out[0..n_out]`, its statements
+    in the order of `schedule` (CasADi's with `reorder=False`)."""
     slot: dict[int, str] = {}
     lines: list[str] = []
     written: set[int] = set()
@@ -96,4 +101,4 @@ def emit(f: ca.Function, input_name: Callable[[int, int], str], n_out: int, out:
     for idx in range(n_out):
         if idx not in written:
             lines.append(f"{out}[{idx}] = 0.0;")
-    return Body(lines, n_mul, n_add, used)
+    return Body(schedule(lines) if reorder else lines, n_mul, n_add, used)

@@ -220,3 +220,60 @@ def test_emission_merges_operations_equal_up_to_commutativity():
         exec(stmt, {}, env)
     want = np.array(f(v)).ravel()
     assert np.array_equal(np.array(env["out"]), want), (env["out"], want)
+
+
+def test_schedule_keeps_every_statement_and_value_and_lowers_register_pressure():
+    """The register-pressure order (codegen/schedule.py) of the PUMA 560 inverse dynamics: the
+    same statements, each after the values it reads, the same outputs bit for bit when run (as
+    Python) as CasADi's order and CasADi's values, and fewer values live at once; a kernel whose
+    values fit the registers (planar2's mass matrix) keeps CasADi's order."""
+    import re
+
+    from codegen.emit_rust import emit
+    from codegen.schedule import _LET, _REF, REGISTERS, max_live
+
+    def bodies(arm_name, kernel):
+        arm = load(ROOT / "arms" / f"{arm_name}.toml")
+        sym, theta, kernels = derive(arm, analyse(arm))
+        k = next(k for k in kernels if k.name == kernel)
+        vectors = {"trig": sym.trig, "q": sym.q, "dq": sym.dq, "ddq": sym.ddq, "theta": theta}
+        f = ca.Function(k.name, [vectors[v] for v in k.inputs], [ca.cse(_sx(k.outputs))])
+        name = lambda inp, nz: f"{k.inputs[inp]}[{nz}]"  # noqa: E731
+        return f, k, emit(f, name, len(k.outputs)).lines, emit(f, name, len(k.outputs), reorder=False).lines
+
+    def live(lines):
+        defines, deps, users = {}, [], [[] for _ in lines]
+        for i, ln in enumerate(lines):
+            m = _LET.match(ln)
+            rhs = m.group(2) if m else ln.split(" = ", 1)[1]
+            deps.append(sorted({defines[r] for r in _REF.findall(rhs) if r in defines}))
+            for d in deps[-1]:
+                users[d].append(i)
+            if m:
+                defines[m.group(1)] = i
+        return max_live(deps, users, range(len(lines)))
+
+    f, k, ordered, casadi = bodies("puma560", "inverse_dynamics")
+    assert sorted(ordered) == sorted(casadi) and ordered != casadi
+    seen: set[str] = set()
+    for ln in ordered:
+        m = _LET.match(ln)
+        assert set(_REF.findall(m.group(2) if m else ln.split(" = ", 1)[1])) <= seen, ln
+        if m:
+            seen.add(m.group(1))
+    assert live(ordered) < live(casadi), (live(ordered), live(casadi))
+
+    rng = np.random.default_rng(3)
+    inputs = {n: list(rng.uniform(-1.0, 1.0, size=f.size1_in(i))) for i, n in enumerate(k.inputs)}
+    results = []
+    for lines in (ordered, casadi):
+        env = {**{n: list(v) for n, v in inputs.items()}, "out": [0.0] * len(k.outputs)}
+        for ln in lines:
+            exec(re.sub(r"^let ", "", ln.rstrip(";")), {}, env)
+        results.append(env["out"])
+    assert results[0] == results[1]
+    want = np.array(f(*[inputs[n] for n in k.inputs])).ravel()
+    assert np.allclose(results[0], want, rtol=1e-12, atol=1e-12)
+
+    _, _, small, small_casadi = bodies("planar2", "mass_matrix")
+    assert small == small_casadi and live(small) <= REGISTERS
