@@ -10,11 +10,13 @@ SymPyBotics' C and its timing harness are an optional peer that lives outside th
 protocol). Both are single-thread medians of their own repetitions.
 
 Why rounds: this 2-core VM's speed swings up to 2x from minute to minute (the same binary's
-planar2 mass matrix took 16.5 and 22.9 ns in consecutive runs), and a process's placement moves
-a large kernel's time too (the same binary's PUMA 560 regressor: 163 ns in most runs, 200-420 ns
-in about one in ten, set by the environment's size and the stack's placement alone), so one run
-of each compares two machine states. Each round runs both back to back, in alternating order, as
-fresh processes;
+planar2 mass matrix took 16.5 and 22.9 ns in consecutive runs), and where a program's file sits
+in memory moves a large kernel's time too: two byte-identical copies of one `dynid` binary,
+side by side, ran the PUMA 560 regressor in 157 and 251 ns, each copy the same every time (the
+pages that hold its code; the stack's offset and the output buffer's do not matter). So one run
+of each compares two machine states and two placements. Each round copies `dynid` to a new file
+and has the SymPyBotics harness compile into a new directory (`SYMBENCH_BUILD`), then runs both
+back to back, in alternating order;
 per kernel the table gives each side's median over rounds and the median of the per-round
 ratios (with its range), which is what the issue's "ratios from one run, medians" asks.
 """
@@ -25,9 +27,11 @@ import argparse
 import json
 import os
 import platform
+import shutil
 import statistics
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -44,7 +48,7 @@ BAR = 1.5
 
 
 def sh(cmd: list[str], env: dict[str, str] | None = None) -> str:
-    r = subprocess.run(cmd, capture_output=True, text=True, env=env)
+    r = subprocess.run(cmd, capture_output=True, text=True, env={**os.environ, **(env or {})})
     if r.returncode != 0:
         sys.exit(f"bench_sympybotics: `{' '.join(cmd)}` failed ({r.returncode}):\n{r.stderr[-2000:]}")
     return r.stdout
@@ -55,9 +59,9 @@ def ours(dynid: str, arm: str) -> dict[tuple[str, str], float]:
     return {(k["arm"], k["kernel"]): k["generated_ns"] for k in out["kernels"]}
 
 
-def theirs(anchor: str) -> dict[tuple[str, str], float]:
+def theirs(anchor: str, build: Path) -> dict[tuple[str, str], float]:
     got = {}
-    for line in sh(["bash", anchor]).splitlines():
+    for line in sh(["bash", anchor], {"SYMBENCH_BUILD": str(build)}).splitlines():
         f = line.strip().split(",")
         if len(f) == 4 and f[0] == "sympybotics" and f[2] in KERNELS:
             got[(f[1], KERNELS[f[2]])] = float(f[3])
@@ -105,13 +109,18 @@ def main() -> None:
     rows: dict[tuple[str, str], list[tuple[float, float]]] = {}
     for r in range(a.rounds):
         print(f"[bench_sympybotics] round {r + 1}/{a.rounds} ...", file=sys.stderr)
-        first_ours = r % 2 == 0
-        t = {} if first_ours else theirs(a.anchor)
-        o: dict[tuple[str, str], float] = {}
-        for arm in ARMS:
-            o.update(ours(a.dynid, arm))
-        if first_ours:
-            t = theirs(a.anchor)
+        # Both programs as new files every round: see the module docs.
+        with tempfile.TemporaryDirectory(prefix="bench-sympybotics-") as tmp:
+            dynid = Path(tmp) / "dynid"
+            shutil.copy2(a.dynid, dynid)
+            build = Path(tmp) / "sympybotics"
+            first_ours = r % 2 == 0
+            t = {} if first_ours else theirs(a.anchor, build)
+            o: dict[tuple[str, str], float] = {}
+            for arm in ARMS:
+                o.update(ours(str(dynid), arm))
+            if first_ours:
+                t = theirs(a.anchor, build)
         for key, ns in t.items():
             if key in o:
                 rows.setdefault(key, []).append((o[key], ns))
