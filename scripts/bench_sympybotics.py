@@ -127,10 +127,10 @@ def main() -> None:
     load_after = loadavg()
 
     lines = [
-        f"{a.rounds} interleaved rounds (each: `dynid bench` on every arm and SymPyBotics' harness back to back, "
-        f"in alternating order); load average {load_before} before, {load_after} after; {os.cpu_count()} CPUs, "
-        f"{cpu()}. ns per call, medians over rounds; *ratio*: median of the per-round SymPyBotics / ours "
-        f"(range in brackets). Bar: ≥ {BAR}×.",
+        f"{a.rounds} interleaved rounds (each: `dynid bench` on every arm from a fresh copy of the binary and "
+        f"SymPyBotics' harness built afresh, back to back, in alternating order); load average {load_before} "
+        f"before, {load_after} after; {os.cpu_count()} CPUs, {cpu()}. ns per call, medians over rounds; "
+        f"*ratio*: median of the per-round SymPyBotics / ours (range in brackets). Bar: ≥ {BAR}×.",
         "",
         "| arm | kernel | ours (ns) | SymPyBotics C (ns) | SymPyBotics / ours | ≥ 1.5× |",
         "|---|---|---:|---:|---:|---|",
