@@ -25,18 +25,7 @@ _REF = re.compile(r"\bx\d+\b")
 def schedule(lines: list[str]) -> list[str]:
     """`lines` (`let xN = …;` and `out[i] = …;` statements, each value defined before use)
     re-ordered to keep few values live."""
-    defines: dict[str, int] = {}
-    deps: list[list[int]] = []
-    for i, ln in enumerate(lines):
-        m = _LET.match(ln)
-        rhs = m.group(2) if m else ln.split(" = ", 1)[1]
-        deps.append(sorted({defines[r] for r in _REF.findall(rhs) if r in defines}))
-        if m:
-            defines[m.group(1)] = i
-    users: list[list[int]] = [[] for _ in lines]
-    for i, ds in enumerate(deps):
-        for d in ds:
-            users[d].append(i)
+    deps, users = graph(lines)
     if max_live(deps, users, range(len(lines))) <= REGISTERS:
         return lines
     remaining = [len(u) for u in users]
@@ -63,6 +52,23 @@ def schedule(lines: list[str]) -> list[str]:
     if len(order) != len(lines):
         raise AssertionError("schedule: the statements do not form a DAG")
     return [lines[i] for i in order]
+
+
+def graph(lines: list[str]) -> tuple[list[list[int]], list[list[int]]]:
+    """Per statement, the statements whose values it reads and those that read its value."""
+    defines: dict[str, int] = {}
+    deps: list[list[int]] = []
+    for i, ln in enumerate(lines):
+        m = _LET.match(ln)
+        rhs = m.group(2) if m else ln.split(" = ", 1)[1]
+        deps.append(sorted({defines[r] for r in _REF.findall(rhs) if r in defines}))
+        if m:
+            defines[m.group(1)] = i
+    users: list[list[int]] = [[] for _ in lines]
+    for i, ds in enumerate(deps):
+        for d in ds:
+            users[d].append(i)
+    return deps, users
 
 
 def max_live(deps: list[list[int]], users: list[list[int]], order) -> int:

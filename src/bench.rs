@@ -9,8 +9,9 @@
 //! warm-up repetition, then [`Settings::reps`] timed ones; the median of elapsed/N is reported in
 //! ns per call, single thread. The kernel is chosen once per timing loop and called through the
 //! `Model` trait (an opaque call per sample, as a user's loop makes it); the reference's inputs
-//! go through [`std::hint::black_box`] so nothing is hoisted or folded. `cargo bench` (criterion, `benches/kernels.rs`) is the careful measurement; this is
-//! the quick one (a few seconds plus about one for the identification). Each kernel is also timed
+//! go through [`std::hint::black_box`] so nothing is hoisted or folded. `cargo bench`
+//! (criterion, `benches/kernels.rs`) is the careful measurement; this is the quick one (a few
+//! seconds plus about one for the identification). Each kernel is also timed
 //! lane-batched ([`crate::pack`]: `LANES` samples per call from the same pool), reported per
 //! sample.
 //!
@@ -236,7 +237,7 @@ impl crate::model::KernelVisitor for TimeGenerated<'_> {
         let mut packs = vec![Pack::default(); len];
         let theta = &case.theta_packed[..];
         let lanes = time_per_call(self.settings, |c| {
-            let [q, dq, ddq] = &case.packed[c % case.packed.len()];
+            let [q, dq, ddq] = case.packs(c);
             K::call_lanes(arm, q, dq, ddq, theta, &mut packs);
             black_box(&mut packs);
         });
@@ -470,8 +471,14 @@ impl Case {
     /// (`c` wraps around the pool; inputs through `black_box`).
     #[inline]
     pub fn call_lanes(&self, kernel: Kernel, c: usize, out: &mut [Pack]) {
-        let [q, dq, ddq] = black_box(&self.packed[c % self.packed.len()]);
+        let [q, dq, ddq] = black_box(self.packs(c));
         kernel.call_lanes(self.arm, q, dq, ddq, &self.theta_packed[..], out);
+    }
+
+    /// `(q, q̇, q̈)` of pool samples `LANES·c … LANES·c + LANES − 1`, packed (`c` wraps around).
+    #[inline]
+    fn packs(&self, c: usize) -> &[Vec<Pack>; 3] {
+        &self.packed[c % self.packed.len()]
     }
 
     /// True when every lane of [`Case::call_lanes`] equals [`Case::call_generated`] on its

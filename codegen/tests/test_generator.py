@@ -230,7 +230,7 @@ def test_schedule_keeps_every_statement_and_value_and_lowers_register_pressure()
     import re
 
     from codegen.emit_rust import emit
-    from codegen.schedule import _LET, _REF, REGISTERS, max_live
+    from codegen.schedule import _LET, _REF, REGISTERS, graph, max_live
 
     def bodies(arm_name, kernel):
         arm = load(ROOT / "arms" / f"{arm_name}.toml")
@@ -242,16 +242,7 @@ def test_schedule_keeps_every_statement_and_value_and_lowers_register_pressure()
         return f, k, emit(f, name, len(k.outputs)).lines, emit(f, name, len(k.outputs), reorder=False).lines
 
     def live(lines):
-        defines, deps, users = {}, [], [[] for _ in lines]
-        for i, ln in enumerate(lines):
-            m = _LET.match(ln)
-            rhs = m.group(2) if m else ln.split(" = ", 1)[1]
-            deps.append(sorted({defines[r] for r in _REF.findall(rhs) if r in defines}))
-            for d in deps[-1]:
-                users[d].append(i)
-            if m:
-                defines[m.group(1)] = i
-        return max_live(deps, users, range(len(lines)))
+        return max_live(*graph(lines), range(len(lines)))
 
     f, k, ordered, casadi = bodies("puma560", "inverse_dynamics")
     assert sorted(ordered) == sorted(casadi) and ordered != casadi
