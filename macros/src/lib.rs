@@ -511,9 +511,10 @@ pub fn kernel_enum(input: TokenStream) -> TokenStream {
                     theta: &[f64],
                     out: &mut [f64],
                 ) {
-                    let _ = (q, dq, ddq, theta);
                     match self {
-                        #(Kernel::#variants => model.#methods(#(#args,)* out),)*
+                        #(Kernel::#variants => <kernel_calls::#variants as KernelCall>::call(
+                            model, q, dq, ddq, theta, out,
+                        ),)*
                     }
                 }
 
@@ -528,9 +529,10 @@ pub fn kernel_enum(input: TokenStream) -> TokenStream {
                     theta: &[crate::pack::Pack],
                     out: &mut [crate::pack::Pack],
                 ) {
-                    let _ = (q, dq, ddq, theta);
                     match self {
-                        #(Kernel::#variants => model.#lanes(#(#args,)* out),)*
+                        #(Kernel::#variants => <kernel_calls::#variants as KernelCall>::call_lanes(
+                            model, q, dq, ddq, theta, out,
+                        ),)*
                     }
                 }
 

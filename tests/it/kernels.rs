@@ -181,9 +181,10 @@ fn lane_kernels_equal_the_scalar_kernels_bit_for_bit() {
     }
 }
 
-/// `Kernel::with` hands its visitor the very kind it was called on, whose `KernelCall` type calls
-/// the same kernel as `Kernel::call` and `Kernel::call_lanes` (the bench's timing loops choose
-/// the kernel this way, once per loop): same kind, same outputs bit for bit, for every arm.
+/// `Kernel::with` hands its visitor the very kind it was called on (the bench's timing loops
+/// choose the kernel this way, once per loop), whose `KernelCall` type — through which
+/// `Kernel::call` dispatches too — gives that kind's outputs, its lane-batched copy the same bit
+/// for bit, for every arm.
 #[test]
 fn kernel_with_visits_the_kind_it_was_called_on() {
     use dynid::model::{KernelCall, KernelVisitor};
