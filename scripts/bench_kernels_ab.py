@@ -27,12 +27,14 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 
 
-def bench(dynid: Path, arm: str) -> dict[str, float]:
+def kernel_times(dynid: Path, arm: str) -> dict[str, float]:
+    """`dynid bench --json --arm <arm>`: ns per call of each generated kernel (also used by
+    bench_sympybotics.py)."""
     r = subprocess.run(
         [str(dynid), "bench", "--json", "--arm", arm, "--samples", "1000"], capture_output=True, text=True
     )
     if r.returncode != 0:
-        sys.exit(f"bench_kernels_ab: `{dynid} bench --arm {arm}` failed ({r.returncode}):\n{r.stderr[-2000:]}")
+        sys.exit(f"`{dynid} bench --arm {arm}` failed ({r.returncode}):\n{r.stderr[-2000:]}")
     out = json.loads(r.stdout)
     return {k["kernel"]: k["generated_ns"] for k in out["kernels"]}
 
@@ -63,7 +65,7 @@ def main() -> None:
                 copy = Path(tmp) / f"dynid-{i}"
                 shutil.copy2(a.dynid[i], copy)
                 for arm in arms:
-                    for kernel, t in bench(copy, arm).items():
+                    for kernel, t in kernel_times(copy, arm).items():
                         times[i].setdefault((arm, kernel), []).append(t)
     names = [Path(b).name for b in a.dynid]
     head = "| arm | kernel | " + " | ".join(f"{n} (ns)" for n in names)

@@ -24,7 +24,6 @@ ratios (with its range), which is what the issue's "ratios from one run, medians
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import platform
 import shutil
@@ -33,6 +32,8 @@ import subprocess
 import sys
 import tempfile
 from pathlib import Path
+
+from bench_kernels_ab import kernel_times
 
 ROOT = Path(__file__).resolve().parent.parent
 ARMS = ["planar2", "puma560", "panda"]
@@ -52,11 +53,6 @@ def sh(cmd: list[str], env: dict[str, str] | None = None) -> str:
     if r.returncode != 0:
         sys.exit(f"bench_sympybotics: `{' '.join(cmd)}` failed ({r.returncode}):\n{r.stderr[-2000:]}")
     return r.stdout
-
-
-def ours(dynid: str, arm: str) -> dict[tuple[str, str], float]:
-    out = json.loads(sh([dynid, "bench", "--json", "--arm", arm, "--samples", "1000"]))
-    return {(k["arm"], k["kernel"]): k["generated_ns"] for k in out["kernels"]}
 
 
 def theirs(anchor: str, build: Path) -> dict[tuple[str, str], float]:
@@ -118,7 +114,7 @@ def main() -> None:
             t = {} if first_ours else theirs(a.anchor, build)
             o: dict[tuple[str, str], float] = {}
             for arm in ARMS:
-                o.update(ours(str(dynid), arm))
+                o.update({(arm, k): ns for k, ns in kernel_times(dynid, arm).items()})
             if first_ours:
                 t = theirs(a.anchor, build)
         for key, ns in t.items():
