@@ -103,7 +103,7 @@ fn read_dir_sorted(dir: &Path) -> Result<Vec<PathBuf>, String> {
 fn discover(arms_dir: &Path, manifest: &Path) -> Result<Vec<Arm>, String> {
     let mut arms = Vec::new();
     for path in read_dir_sorted(arms_dir)? {
-        if !path.extension().is_some_and(|e| e == "toml") {
+        if path.extension().is_none_or(|e| e != "toml") {
             continue;
         }
         let stem = path

@@ -33,6 +33,7 @@ use serde::Serialize;
 
 use crate::dh::DhTable;
 use crate::model::Model;
+use crate::pack::wide::{Pack8, WIDE_LANES};
 use crate::pack::{gather, Pack, LANES};
 use crate::reference::{RefModel, Workspace};
 
@@ -91,6 +92,10 @@ pub struct KernelTiming {
     /// in the human and markdown tables.
     #[serde(skip)]
     pub lanes_ns: f64,
+    /// The eight-lane generated kernel ([`crate::pack::wide`]: AVX-512 where the CPU has it)
+    /// on the same pool, ns per *sample* (median). Not in `--json`, like `lanes_ns`.
+    #[serde(skip)]
+    pub lanes8_ns: f64,
 }
 
 /// The streaming identification run.
@@ -120,8 +125,12 @@ pub enum BenchError {
         kernel: &'static str,
         err: f64,
     },
-    #[error("{arm}: a lane of the lane-batched `{kernel}` differs from the scalar kernel — a bug in the lane copy (macros/src/lanes.rs) or in crate::pack")]
-    LanesMismatch { arm: String, kernel: &'static str },
+    #[error("{arm}: a lane of the {lanes}-lane `{kernel}` differs from the scalar kernel — a bug in the lane copy (macros/src/lanes.rs) or in crate::pack")]
+    LanesMismatch {
+        arm: String,
+        kernel: &'static str,
+        lanes: usize,
+    },
     #[error("{arm}: the built-in D-H table does not parse: {msg}")]
     Table { arm: String, msg: String },
     #[error("identification: the information matrix is singular or ill-conditioned (cond(Yb) = {cond:.3e}) — the excitation does not identify all base parameters")]
@@ -222,9 +231,9 @@ struct TimeGenerated<'a> {
 }
 
 impl crate::model::KernelVisitor for TimeGenerated<'_> {
-    type Output = (f64, f64);
+    type Output = (f64, f64, f64);
 
-    fn visit<K: crate::model::KernelCall>(self) -> (f64, f64) {
+    fn visit<K: crate::model::KernelCall>(self) -> (f64, f64, f64) {
         let case = self.case;
         let len = case.out_len(K::KERNEL);
         // The arm through `black_box`: its calls stay calls through the trait.
@@ -241,7 +250,14 @@ impl crate::model::KernelVisitor for TimeGenerated<'_> {
             K::call_lanes(arm, q, dq, ddq, theta, &mut packs);
             black_box(&mut packs);
         });
-        (single, lanes / LANES as f64)
+        let mut packs8 = vec![Pack8::default(); len];
+        let theta = &case.theta_packed8[..];
+        let lanes8 = time_per_call(self.settings, |c| {
+            let [q, dq, ddq] = case.packs8(c);
+            K::call_lanes8(arm, q, dq, ddq, theta, &mut packs8);
+            black_box(&mut packs8);
+        });
+        (single, lanes / LANES as f64, lanes8 / WIDE_LANES as f64)
     }
 }
 
@@ -400,6 +416,9 @@ pub struct Case {
     /// The pool as packs of `LANES` consecutive samples: `[q, dq, ddq]`, each `dof` packs.
     packed: Vec<[Vec<Pack>; 3]>,
     theta_packed: Vec<Pack>,
+    /// The pool as [`Pack8`]s of `WIDE_LANES` consecutive samples (pairs of `packed`).
+    packed8: Vec<[Vec<Pack8>; 3]>,
+    theta_packed8: Vec<Pack8>,
 }
 
 impl Case {
@@ -409,7 +428,7 @@ impl Case {
         let p = plausible_params(arm.dof(), 7);
         let mut theta = vec![0.0; arm.nb()];
         arm.base_params(&p, &mut theta);
-        let packed = (0..POOL / LANES)
+        let packed: Vec<[Vec<Pack>; 3]> = (0..POOL / LANES)
             .map(|c| {
                 let group = |which: usize| {
                     let mut out = vec![Pack::default(); arm.dof()];
@@ -424,6 +443,19 @@ impl Case {
             })
             .collect();
         let theta_packed = theta.iter().map(|&t| Pack::splat(t)).collect();
+        let packed8 = packed
+            .chunks_exact(WIDE_LANES / LANES)
+            .map(|pair: &[[Vec<Pack>; 3]]| {
+                std::array::from_fn(|which| {
+                    pair[0][which]
+                        .iter()
+                        .zip(&pair[1][which])
+                        .map(|(&lo, &hi)| Pack8::join(lo, hi))
+                        .collect()
+                })
+            })
+            .collect();
+        let theta_packed8 = theta.iter().map(|&t| Pack8::splat(t)).collect();
         Case {
             arm,
             pool,
@@ -431,6 +463,8 @@ impl Case {
             theta,
             packed,
             theta_packed,
+            packed8,
+            theta_packed8,
         }
     }
 
@@ -479,6 +513,41 @@ impl Case {
     #[inline]
     fn packs(&self, c: usize) -> &[Vec<Pack>; 3] {
         &self.packed[c % self.packed.len()]
+    }
+
+    /// The eight-lane generated `kernel` on pool samples `8c … 8c + 7` (`c` wraps around the
+    /// pool; inputs through `black_box`).
+    #[inline]
+    pub fn call_lanes8(&self, kernel: Kernel, c: usize, out: &mut [Pack8]) {
+        let [q, dq, ddq] = black_box(self.packs8(c));
+        kernel.call_lanes8(self.arm, q, dq, ddq, &self.theta_packed8[..], out);
+    }
+
+    /// `(q, q̇, q̈)` of pool samples `8c … 8c + 7`, packed (`c` wraps around).
+    #[inline]
+    fn packs8(&self, c: usize) -> &[Vec<Pack8>; 3] {
+        &self.packed8[c % self.packed8.len()]
+    }
+
+    /// True when every lane of [`Case::call_lanes8`] equals [`Case::call_generated`] on its
+    /// sample, bit for bit, over the first few packs (in whichever form
+    /// [`crate::pack::wide::avx512`] chose).
+    pub fn lanes8_match(&self, kernel: Kernel) -> bool {
+        let len = self.out_len(kernel);
+        let mut packed = vec![Pack8::default(); len];
+        let (mut want, mut got) = (vec![0.0; len], vec![0.0; len]);
+        (0..4).all(|c| {
+            self.call_lanes8(kernel, c, &mut packed);
+            (0..WIDE_LANES).all(|l| {
+                self.call_generated(kernel, c * WIDE_LANES + l, &mut want);
+                for (g, p) in got.iter_mut().zip(&packed) {
+                    *g = p.to_array()[l];
+                }
+                want.iter()
+                    .zip(&got)
+                    .all(|(a, b)| a.to_bits() == b.to_bits())
+            })
+        })
     }
 
     /// True when every lane of [`Case::call_lanes`] equals [`Case::call_generated`] on its
@@ -557,13 +626,19 @@ pub fn measure_arm(
                 err,
             });
         }
-        if !case.lanes_match(kernel) {
-            return Err(BenchError::LanesMismatch {
-                arm: arm.name().to_string(),
-                kernel: kernel.name(),
-            });
+        for (lanes, ok) in [
+            (LANES, case.lanes_match(kernel)),
+            (WIDE_LANES, case.lanes8_match(kernel)),
+        ] {
+            if !ok {
+                return Err(BenchError::LanesMismatch {
+                    arm: arm.name().to_string(),
+                    kernel: kernel.name(),
+                    lanes,
+                });
+            }
         }
-        let (generated_ns, lanes_ns) = kernel.with(TimeGenerated {
+        let (generated_ns, lanes_ns, lanes8_ns) = kernel.with(TimeGenerated {
             case: &case,
             settings,
         });
@@ -578,6 +653,7 @@ pub fn measure_arm(
             generated_ns,
             reference_ns,
             lanes_ns,
+            lanes8_ns,
         });
     }
     Ok(out)

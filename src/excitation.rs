@@ -295,7 +295,7 @@ impl Margins {
             &self.window,
             &self.rest,
         ];
-        all.iter().all(|v| v.iter().all(|&m| m > 0.0)) && self.height.map_or(true, |h| h >= 0.0)
+        all.iter().all(|v| v.iter().all(|&m| m > 0.0)) && self.height.is_none_or(|h| h >= 0.0)
     }
 }
 

@@ -181,6 +181,38 @@ impl Neg for Pack {
     }
 }
 
+/// A vector of samples the lane-batched kernels run on: the generated `<kernel>_lanes` functions
+/// are generic over it (the macro's copy of the scalar body with `f64` → `P`, each float literal
+/// `c` → `P::splat(c)` and `crate::trig::sin_cos` → `P::sin_cos`), instantiated for [`Pack`]
+/// (four lanes) and, where the CPU has AVX-512, for eight lanes ([`wide`]). Every operation
+/// must be the scalar one lane by lane, bit for bit.
+pub trait Lane:
+    Copy
+    + Add<Output = Self>
+    + Sub<Output = Self>
+    + Mul<Output = Self>
+    + Div<Output = Self>
+    + Neg<Output = Self>
+{
+    /// `x` in every lane.
+    fn splat(x: f64) -> Self;
+    /// `(sin x, cos x)` lane by lane, bit for bit [`crate::trig::sin_cos`] of each lane.
+    fn sin_cos(self) -> (Self, Self);
+}
+
+impl Lane for Pack {
+    #[inline(always)]
+    fn splat(x: f64) -> Self {
+        Pack::splat(x)
+    }
+    #[inline(always)]
+    fn sin_cos(self) -> (Self, Self) {
+        sin_cos(self)
+    }
+}
+
+pub mod wide;
+
 /// `(sin x, cos x)` lane by lane: the generated kernels' `crate::trig::sin_cos`, batched, with
 /// the same values bit for bit.
 #[inline(always)]

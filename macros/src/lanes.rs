@@ -1,6 +1,8 @@
-//! The lane-batched copy of a generated kernel (see `dynid::pack`): the same body with `f64`
-//! replaced by `crate::pack::Pack`, every float literal `c` by `Pack::splat(c)` and
-//! `crate::trig::sin_cos` by `crate::pack::sin_cos`. The function becomes `<name>_lanes`.
+//! The lane-batched copy of a generated kernel (see `dynid::pack`): the same body, generic over
+//! the lane type `L: crate::pack::Lane`, with `f64` replaced by `L`, every float literal `c` by
+//! `L::splat(c)` and `crate::trig::sin_cos` by `L::sin_cos`. The function becomes
+//! `<name>_lanes::<L>`, always inlined (into the `Model` methods that pick `L`, and into the
+//! AVX-512 wrappers, which must compile it with their target features).
 
 use quote::{format_ident, quote};
 use syn::visit_mut::{self, VisitMut};
@@ -12,7 +14,7 @@ impl VisitMut for ToLanes {
     fn visit_type_mut(&mut self, ty: &mut Type) {
         if let Type::Path(p) = ty {
             if p.qself.is_none() && p.path.is_ident("f64") {
-                *ty = parse_quote!(crate::pack::Pack);
+                *ty = parse_quote!(L);
                 return;
             }
         }
@@ -25,23 +27,26 @@ impl VisitMut for ToLanes {
                 lit: Lit::Float(f), ..
             }) => {
                 let f = f.clone();
-                *expr = parse_quote!(crate::pack::Pack::splat(#f));
+                *expr = parse_quote!(<L as crate::pack::Lane>::splat(#f));
             }
             Expr::Path(ExprPath { path, .. })
                 if quote!(#path).to_string().replace(' ', "") == "crate::trig::sin_cos" =>
             {
-                *path = parse_quote!(crate::pack::sin_cos);
+                *expr = parse_quote!(<L as crate::pack::Lane>::sin_cos);
             }
             _ => visit_mut::visit_expr_mut(self, expr),
         }
     }
 }
 
-/// `fn name(..f64..)` → `fn name_lanes(..Pack..)`.
+/// `fn name(..f64..)` → `fn name_lanes<L: Lane>(..L..)`.
 pub fn lane_copy(f: &ItemFn) -> ItemFn {
     let mut g = f.clone();
     g.sig.ident = format_ident!("{}_lanes", f.sig.ident);
     ToLanes.visit_item_fn_mut(&mut g);
+    g.sig.generics = parse_quote!(<L: crate::pack::Lane>);
+    g.attrs.retain(|a| !a.path().is_ident("inline"));
+    g.attrs.push(parse_quote!(#[inline(always)]));
     g.attrs
         .push(parse_quote!(#[doc = "Lane-batched copy (see `crate::pack`)."]));
     g

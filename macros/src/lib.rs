@@ -240,6 +240,7 @@ fn expand(args: &ArmArgs) -> Result<proc_macro2::TokenStream, String> {
             }
 
             type P = crate::pack::Pack;
+            type W = crate::pack::wide::Pack8;
 
             #[doc = #type_doc]
             #[derive(Debug, Clone, Copy, Default)]
@@ -360,14 +361,53 @@ fn check_items(
 fn impl_methods(k: &KernelSpec) -> proc_macro2::TokenStream {
     let name = format_ident!("{}", k.name);
     let lanes = format_ident!("{}_lanes", k.name);
+    let lanes8 = format_ident!("{}_lanes8", k.name);
     let args: Vec<Ident> = k.inputs.iter().map(|i| format_ident!("{}", i)).collect();
     let labels = &k.inputs;
+    // Array lengths of the inputs (`theta`: base parameters; the rest: one value per joint) and
+    // of the output, for the AVX-512 wrapper's signature.
+    let lens: Vec<proc_macro2::TokenStream> = k
+        .inputs
+        .iter()
+        .map(|i| {
+            if i == "theta" {
+                quote!(NB)
+            } else {
+                quote!(DOF)
+            }
+        })
+        .collect();
+    let out_len: syn::Expr = syn::parse_str(&k.out_len).expect("checked by manifest::read");
     quote! {
         fn #name(&self, #(#args: &[f64],)* out: &mut [f64]) {
             #name(#(_arr(#args, #labels),)* _arr_mut(out, "out"))
         }
         fn #lanes(&self, #(#args: &[P],)* out: &mut [P]) {
-            #lanes(#(_arr(#args, #labels),)* _arr_mut(out, "out"))
+            #lanes::<P>(#(_arr(#args, #labels),)* _arr_mut(out, "out"))
+        }
+        fn #lanes8(&self, #(#args: &[W],)* out: &mut [W]) {
+            #(let #args: &[W; #lens] = _arr(#args, #labels);)*
+            let out: &mut [W; #out_len] = _arr_mut(out, "out");
+            #[cfg(all(target_arch = "x86_64", target_feature = "fma"))]
+            if crate::pack::wide::avx512() {
+                #[target_feature(enable = "avx512f")]
+                fn wide(#(#args: &[W; #lens],)* out: &mut [W; #out_len]) {
+                    // SAFETY: compiled with AVX-512F, called only where the CPU has it.
+                    unsafe {
+                        #lanes::<crate::pack::wide::Zmm>(
+                            #(crate::pack::wide::as_zmm(#args),)*
+                            crate::pack::wide::as_zmm_mut(out),
+                        )
+                    }
+                }
+                // SAFETY: `avx512()` checked that the CPU has AVX-512F.
+                return unsafe { wide(#(#args,)* out) };
+            }
+            let mut lo = [P::default(); #out_len];
+            let mut hi = [P::default(); #out_len];
+            #lanes::<P>(#(&crate::pack::wide::halves(#args, 0),)* &mut lo);
+            #lanes::<P>(#(&crate::pack::wide::halves(#args, 1),)* &mut hi);
+            crate::pack::wide::join_into(&lo, &hi, out);
         }
     }
 }
@@ -417,12 +457,24 @@ pub fn kernel_methods(input: TokenStream) -> TokenStream {
             } else {
                 ""
             };
+            let lanes8 = format_ident!("{}_lanes8", k.name);
             let lanes_doc = format!("[`Model::{}`] of `LANES` samples{theta_note}.", k.name);
+            let lanes8_doc = format!(
+                "[`Model::{}`] of `WIDE_LANES` (8) samples{theta_note}: AVX-512 where the CPU \
+                 has it, else two four-lane calls (see [`crate::pack::wide`]).",
+                k.name
+            );
             quote! {
                 #[doc = #doc]
                 fn #name(&self, #(#args: &[f64],)* out: &mut [f64]);
                 #[doc = #lanes_doc]
                 fn #lanes(&self, #(#args: &[crate::pack::Pack],)* out: &mut [crate::pack::Pack]);
+                #[doc = #lanes8_doc]
+                fn #lanes8(
+                    &self,
+                    #(#args: &[crate::pack::wide::Pack8],)*
+                    out: &mut [crate::pack::wide::Pack8],
+                );
             }
         });
         quote!(#(#methods)*)
@@ -460,6 +512,10 @@ pub fn kernel_enum(input: TokenStream) -> TokenStream {
         let lanes: Vec<Ident> = kernels
             .iter()
             .map(|k| format_ident!("{}_lanes", k.name))
+            .collect();
+        let lanes8: Vec<Ident> = kernels
+            .iter()
+            .map(|k| format_ident!("{}_lanes8", k.name))
             .collect();
         let args: Vec<Vec<Ident>> = kernels
             .iter()
@@ -536,6 +592,25 @@ pub fn kernel_enum(input: TokenStream) -> TokenStream {
                     }
                 }
 
+                /// Calls the eight-lane copy of this kernel of `model` (see
+                /// [`crate::pack::wide`]).
+                #[inline]
+                pub fn call_lanes8(
+                    self,
+                    model: &dyn Model,
+                    q: &[crate::pack::wide::Pack8],
+                    dq: &[crate::pack::wide::Pack8],
+                    ddq: &[crate::pack::wide::Pack8],
+                    theta: &[crate::pack::wide::Pack8],
+                    out: &mut [crate::pack::wide::Pack8],
+                ) {
+                    match self {
+                        #(Kernel::#variants => <kernel_calls::#variants as KernelCall>::call_lanes8(
+                            model, q, dq, ddq, theta, out,
+                        ),)*
+                    }
+                }
+
                 /// Runs `v` with this kernel kind as a type ([`KernelCall`]): a loop that calls
                 /// one kernel many times chooses it once, outside the loop, instead of matching
                 /// on the kind at every call as [`Kernel::call`] does.
@@ -569,6 +644,15 @@ pub fn kernel_enum(input: TokenStream) -> TokenStream {
                     ddq: &[crate::pack::Pack],
                     theta: &[crate::pack::Pack],
                     out: &mut [crate::pack::Pack],
+                );
+                /// [`Kernel::call_lanes8`] of this kind.
+                fn call_lanes8(
+                    model: &dyn Model,
+                    q: &[crate::pack::wide::Pack8],
+                    dq: &[crate::pack::wide::Pack8],
+                    ddq: &[crate::pack::wide::Pack8],
+                    theta: &[crate::pack::wide::Pack8],
+                    out: &mut [crate::pack::wide::Pack8],
                 );
             }
 
@@ -613,6 +697,18 @@ pub fn kernel_enum(input: TokenStream) -> TokenStream {
                         ) {
                             let _ = (q, dq, ddq, theta);
                             model.#lanes(#(#args,)* out)
+                        }
+                        #[inline(always)]
+                        fn call_lanes8(
+                            model: &dyn Model,
+                            q: &[crate::pack::wide::Pack8],
+                            dq: &[crate::pack::wide::Pack8],
+                            ddq: &[crate::pack::wide::Pack8],
+                            theta: &[crate::pack::wide::Pack8],
+                            out: &mut [crate::pack::wide::Pack8],
+                        ) {
+                            let _ = (q, dq, ddq, theta);
+                            model.#lanes8(#(#args,)* out)
                         }
                     }
                 )*

@@ -212,7 +212,7 @@ mod tests {
     fn encode(little: bool, sec: i32, nsec: u32, names: &[&str], arrays: [&[f64]; 3]) -> Vec<u8> {
         let mut b = vec![0, u8::from(little), 0, 0];
         let align = |b: &mut Vec<u8>, n: usize| {
-            while (b.len() - 4) % n != 0 {
+            while !(b.len() - 4).is_multiple_of(n) {
                 b.push(0);
             }
         };

@@ -288,10 +288,15 @@ pub fn markdown(report: &Report, pin: &PinocchioTimes, info: &RunInfo) -> String
          `benches/peers/pinocchio/run.sh` (base regressor vs its full regressor, M vs CRBA, bias vs \
          `nonLinearEffects`, gravity vs `computeGeneralizedGravity`, inverse dynamics vs RNEA). \
          Operation counts are the generator's (binary `*` `/` and `+` `−`). *lanes*: the same generated kernel batched over 4 samples per call \
-         (`dynid::pack`, one AVX instruction per operation), ns per *sample*.\n"
+         (`dynid::pack`, one AVX instruction per operation), ns per *sample*; *8 lanes*: over 8 samples per call \
+         (`dynid::pack::wide`: {}), ns per sample, and *lanes / 8 lanes* the throughput gained by the wider form.\n",
+        crate::pack::wide::wide_form()
     );
-    let _ = writeln!(s, "| arm | kernel | mul / add | generated | lanes (per sample) | reference | Pinocchio | reference / generated | Pinocchio / generated | Pinocchio / lanes |");
-    let _ = writeln!(s, "|---|---|---|---:|---:|---:|---:|---:|---:|---:|");
+    let _ = writeln!(s, "| arm | kernel | mul / add | generated | lanes (per sample) | 8 lanes (per sample) | lanes / 8 lanes | reference | Pinocchio | reference / generated | Pinocchio / generated | Pinocchio / lanes |");
+    let _ = writeln!(
+        s,
+        "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+    );
     for k in &report.kernels {
         let ops = crate::arms::find(&k.arm)
             .and_then(|m| {
@@ -304,12 +309,14 @@ pub fn markdown(report: &Report, pin: &PinocchioTimes, info: &RunInfo) -> String
         let p = pin.get(&k.arm, k.kernel);
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {:.1} | {:.1} | {:.1} | {} | {:.1}× | {} | {} |",
+            "| {} | {} | {} | {:.1} | {:.1} | {:.1} | {:.2}× | {:.1} | {} | {:.1}× | {} | {} |",
             k.arm,
             k.kernel,
             ops,
             k.generated_ns,
             k.lanes_ns,
+            k.lanes8_ns,
+            k.lanes_ns / k.lanes8_ns,
             k.reference_ns,
             p.map_or("—".into(), |v| format!("{v:.0}")),
             k.reference_ns / k.generated_ns,
@@ -466,6 +473,7 @@ mod tests {
             generated_ns: g,
             reference_ns: r,
             lanes_ns: g / 4.0,
+            lanes8_ns: g / 6.0,
         };
         Report {
             kernels: vec![
@@ -521,7 +529,7 @@ mod tests {
         );
         assert!(md.contains("| puma560 | base_regressor |"));
         assert!(
-            md.contains("| 100.0 | 25.0 | 1600.0 | 1160 | 16.0× | 11.6× | 46.4× |"),
+            md.contains("| 100.0 | 25.0 | 16.7 | 1.50× | 1600.0 | 1160 | 16.0× | 11.6× | 46.4× |"),
             "{md}"
         );
         assert!(md.contains("| puma560 | gravity |") && md.contains("| — | 15.0× | — | — |"));

@@ -122,25 +122,34 @@ pub fn run(args: &Args) -> Result<()> {
 fn write_table(w: &mut dyn std::io::Write, report: &Report) -> std::io::Result<()> {
     writeln!(
         w,
-        "{:<10} {:<17} {:>14} {:>16} {:>14} {:>8}",
-        "ARM", "KERNEL", "GENERATED ns", "LANES ns/sample", "REFERENCE ns", "REF/GEN"
+        "{:<10} {:<17} {:>14} {:>16} {:>17} {:>14} {:>8}",
+        "ARM",
+        "KERNEL",
+        "GENERATED ns",
+        "LANES ns/sample",
+        "LANES8 ns/sample",
+        "REFERENCE ns",
+        "REF/GEN"
     )?;
     for k in &report.kernels {
         writeln!(
             w,
-            "{:<10} {:<17} {:>14.1} {:>16.1} {:>14.1} {:>7.1}×",
+            "{:<10} {:<17} {:>14.1} {:>16.1} {:>17.1} {:>14.1} {:>7.1}×",
             k.arm,
             k.kernel,
             k.generated_ns,
             k.lanes_ns,
+            k.lanes8_ns,
             k.reference_ns,
             k.reference_ns / k.generated_ns
         )?;
     }
     writeln!(
         w,
-        "(LANES: the same generated kernel on {} samples per call, dynid::pack)",
-        crate::pack::LANES
+        "(LANES: the same generated kernel on {} samples per call, dynid::pack; LANES8: on {}, {})",
+        crate::pack::LANES,
+        crate::pack::wide::WIDE_LANES,
+        crate::pack::wide::wide_form()
     )?;
     let i = &report.identify;
     writeln!(

@@ -116,7 +116,7 @@ pub(super) fn load_stage(
             if first
                 .stopped_on
                 .as_ref()
-                .map_or(true, |f| s.heldout_gain > f.heldout_gain)
+                .is_none_or(|f| s.heldout_gain > f.heldout_gain)
             {
                 first.stopped_on = Some(s);
             }

@@ -287,7 +287,7 @@ impl PredictionSink {
     pub(super) fn take(&mut self, samples: &[f64]) {
         let n = self.dof;
         for x in samples.chunks_exact(1 + (2 + self.models) * n) {
-            if self.seen % self.stride == 0 {
+            if self.seen.is_multiple_of(self.stride) {
                 // The plot's sample: t, q̇, τ, rigid and final model.
                 self.plotted.extend_from_slice(&x[..1 + 4 * n]);
             }

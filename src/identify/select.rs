@@ -187,13 +187,13 @@ pub fn select(
             if passes
                 && best_pass
                     .as_ref()
-                    .map_or(true, |b| ev.heldout_gain > b.heldout_gain)
+                    .is_none_or(|b| ev.heldout_gain > b.heldout_gain)
             {
                 best_pass = Some(ev.clone());
             }
             if best
                 .as_ref()
-                .map_or(true, |b| ev.heldout_gain > b.heldout_gain)
+                .is_none_or(|b| ev.heldout_gain > b.heldout_gain)
             {
                 best = Some(ev);
             }
@@ -288,8 +288,7 @@ fn group_step(
         .collect();
     for (g, t) in groups.iter().zip(tested) {
         let Some((t_stat, gain)) = t else { continue };
-        if t_stat > t_group && gain >= rules.min_gain && best.as_ref().map_or(true, |b| gain > b.0)
-        {
+        if t_stat > t_group && gain >= rules.min_gain && best.as_ref().is_none_or(|b| gain > b.0) {
             best = Some((gain, g.clone()));
         }
     }

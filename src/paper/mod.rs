@@ -708,7 +708,7 @@ fn error_table(v: &Variants, iterations: usize) -> Vec<ErrorRow> {
 fn theta_upto(recs: &[IterRecord], upto: Option<usize>, cfg: &PaperConfig) -> Vec<f64> {
     recs.iter()
         .rev()
-        .find(|r| upto.map_or(true, |u| r.iteration <= u))
+        .find(|r| upto.is_none_or(|u| r.iteration <= u))
         .map(|r| r.theta_hat.clone())
         .unwrap_or_else(|| cfg.theta0.clone())
 }

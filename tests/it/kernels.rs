@@ -181,6 +181,71 @@ fn lane_kernels_equal_the_scalar_kernels_bit_for_bit() {
     }
 }
 
+/// The eight-lane kernels (`dynid::pack::wide`), in both forms — AVX-512 (where this CPU has it)
+/// and two four-lane calls — are bit for bit the scalar kernel on each lane's sample, for every
+/// arm and kernel, with a different θ per lane; one round puts an angle beyond the
+/// trigonometry's fast path in one lane and one puts `fl(π/2)` (the exact reduction) in another.
+#[test]
+fn eight_lane_kernels_equal_the_scalar_kernels_bit_for_bit_in_both_forms() {
+    use dynid::pack::wide::{avx512, force_halves, Pack8, WIDE_LANES};
+    let mut forms = vec![false];
+    if avx512() {
+        forms.push(true);
+    } else {
+        eprintln!("no AVX-512F here (or DYNID_NO_AVX512 set): only the four-lane halves run");
+    }
+    let mut r = rng(78);
+    for wide in forms {
+        force_halves(!wide);
+        assert_eq!(avx512(), wide);
+        for &m in dynid::arms::all() {
+            let (n, np, nb) = (m.dof(), m.np(), m.nb());
+            for round in 0..30 {
+                let samples: Vec<[Vec<f64>; 4]> = (0..WIDE_LANES)
+                    .map(|l| {
+                        let (mut q, dq, ddq) = random_state(&mut r, n);
+                        match (round, l) {
+                            (0, 5) => q[0] = -3.0e6,
+                            (1, 2) => q[n - 1] = std::f64::consts::FRAC_PI_2,
+                            _ => {}
+                        }
+                        let theta: Vec<f64> = (0..nb).map(|_| r.gen_range(-2.0..2.0)).collect();
+                        [q, dq, ddq, theta]
+                    })
+                    .collect();
+                let pack = |k: usize, len: usize| -> Vec<Pack8> {
+                    (0..len)
+                        .map(|j| Pack8::new(std::array::from_fn(|l| samples[l][k][j])))
+                        .collect()
+                };
+                let (q, dq, ddq, th) = (pack(0, n), pack(1, n), pack(2, n), pack(3, nb));
+                for kernel in Kernel::ALL {
+                    let len = kernel.out_len(n, np, nb);
+                    let mut out = vec![Pack8::default(); len];
+                    kernel.call_lanes8(m, &q, &dq, &ddq, &th, &mut out);
+                    let mut want = vec![0.0; len];
+                    for (l, s) in samples.iter().enumerate() {
+                        kernel.call(m, &s[0], &s[1], &s[2], &s[3], &mut want);
+                        let got: Vec<f64> = out.iter().map(|p| p.to_array()[l]).collect();
+                        let same = want
+                            .iter()
+                            .zip(&got)
+                            .all(|(a, b)| a.to_bits() == b.to_bits());
+                        assert!(
+                            same,
+                            "{} {} lane {l} ({}): {got:?} vs {want:?}",
+                            m.name(),
+                            kernel.name(),
+                            if wide { "avx512" } else { "halves" }
+                        );
+                    }
+                }
+            }
+        }
+    }
+    force_halves(false);
+}
+
 /// `Kernel::with` hands its visitor the very kind it was called on (the bench's timing loops
 /// choose the kernel this way, once per loop), whose `KernelCall` type — through which
 /// `Kernel::call` dispatches too — gives that kind's outputs, its lane-batched copy the same bit
