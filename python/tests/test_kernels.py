@@ -67,7 +67,8 @@ def test_mass_matrix_bias_gravity_inverse_dynamics_equal_pinocchio(case):
 def test_one_sample_equals_its_row_of_a_batch_bit_for_bit(case):
     """(n,) goes through the scalar kernel, (N, n) through the lanes (and the scalar tail): the same numbers."""
     arm, p, _, _, q, dq, ddq = case
-    for n in (1, 3, 4, 7):  # below, at and past one lane pack
+    # Below, at and past a four-lane pack, an eight-lane pack (AVX-512 CPUs), and 8 + 4 + 1 (every form in one call).
+    for n in (1, 3, 4, 7, 8, 13, SAMPLES):
         batch = arm.base_regressor(q[:n], dq[:n], ddq[:n])
         tau = arm.inverse_dynamics(q[:n], dq[:n], ddq[:n], p)
         for k in range(n):
