@@ -234,7 +234,7 @@ pub const STREAM_BYTES: usize = 8 << 20;
 fn scatter(packed: &[Pack], block: &mut [f64], stream: bool) {
     let len = packed.len();
     let quads = len - len % 4;
-    let pairs_aligned = len % 2 == 0 && (block.as_ptr() as usize) % 16 == 0;
+    let pairs_aligned = len.is_multiple_of(2) && (block.as_ptr() as usize).is_multiple_of(16);
     for k in (0..quads).step_by(4) {
         let a: [[f64; 4]; 4] = std::array::from_fn(|i| packed[k + i].to_array());
         for l in 0..LANES {
@@ -268,7 +268,7 @@ fn scatter(packed: &[Pack], block: &mut [f64], stream: bool) {
 /// (x86-64: `movntpd`); [`store_fence`] after.
 #[inline(always)]
 fn store_streaming_pair(dst: &mut [f64], v: [f64; 2]) {
-    debug_assert!(dst.len() == 2 && (dst.as_ptr() as usize) % 16 == 0);
+    debug_assert!(dst.len() == 2 && (dst.as_ptr() as usize).is_multiple_of(16));
     #[cfg(target_arch = "x86_64")]
     // SAFETY: `dst` is two valid, exclusive f64s at a 16-byte aligned address (checked by the
     // caller: an aligned block and an even row length); `movntpd` is SSE2, in the x86-64
