@@ -22,6 +22,10 @@ impl VisitMut for ToLanes {
     }
 
     fn visit_expr_mut(&mut self, expr: &mut Expr) {
+        if let Some(place) = zero_store(expr) {
+            *expr = parse_quote!(crate::pack::store_zero::<L>(&mut #place));
+            return;
+        }
         match expr {
             Expr::Lit(ExprLit {
                 lit: Lit::Float(f), ..
@@ -37,6 +41,23 @@ impl VisitMut for ToLanes {
             _ => visit_mut::visit_expr_mut(self, expr),
         }
     }
+}
+
+/// `out[k] = 0.0` (a constant zero output): its place, `out[k]`. Such stores become
+/// `crate::pack::store_zero::<L>` in the lane copies, so that the lane type decides how a zero is
+/// stored (the eight-lane one keeps LLVM from merging runs of them into a `memset` call: up to
+/// 131 of the SCARA regressor's 160 outputs are zeros).
+fn zero_store(expr: &Expr) -> Option<Expr> {
+    let Expr::Assign(a) = expr else { return None };
+    let Expr::Lit(ExprLit {
+        lit: Lit::Float(f), ..
+    }) = &*a.right
+    else {
+        return None;
+    };
+    let is_out = matches!(&*a.left, Expr::Index(i) if matches!(&*i.expr, Expr::Path(p) if p.path.is_ident("out")));
+    (is_out && f.base10_parse::<f64>().ok() == Some(0.0) && !f.base10_digits().starts_with('-'))
+        .then(|| (*a.left).clone())
 }
 
 /// `fn name(..f64..)` → `fn name_lanes<L: Lane>(..L..)`.

@@ -215,6 +215,13 @@ mod zmm {
         fn splat(x: f64) -> Self {
             Zmm(unsafe { _mm512_set1_pd(x) })
         }
+        /// One store per zero (volatile: never merged into a `memset`; see
+        /// [`crate::pack::store_zero`]).
+        #[inline(always)]
+        fn store_zero(dst: &mut Self) {
+            // SAFETY: `dst` is a valid, aligned, exclusive reference.
+            unsafe { std::ptr::write_volatile(dst, Self::splat(0.0)) }
+        }
         #[inline(always)]
         fn sin_cos(self) -> (Self, Self) {
             if let Some((s, c)) = unsafe { crate::trig::avx512::sin_cos(self.0) } {
