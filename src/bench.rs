@@ -533,16 +533,32 @@ impl Case {
     /// sample, bit for bit, over the first few packs (in whichever form
     /// [`crate::pack::wide::avx512`] chose).
     pub fn lanes8_match(&self, kernel: Kernel) -> bool {
+        let mut packed = vec![Pack8::default(); self.out_len(kernel)];
+        self.every_lane_matches(kernel, WIDE_LANES, |c, l, got| {
+            if l == 0 {
+                self.call_lanes8(kernel, c, &mut packed);
+            }
+            for (g, p) in got.iter_mut().zip(&packed) {
+                *g = p.to_array()[l];
+            }
+        })
+    }
+
+    /// Whether lane `l` of call `c` of a `width`-lane kernel (`lane(c, l, out)` writes it; lanes
+    /// of one call are asked for in order from 0) is bit for bit [`Case::call_generated`] on
+    /// sample `width·c + l`, for the first four calls.
+    fn every_lane_matches(
+        &self,
+        kernel: Kernel,
+        width: usize,
+        mut lane: impl FnMut(usize, usize, &mut [f64]),
+    ) -> bool {
         let len = self.out_len(kernel);
-        let mut packed = vec![Pack8::default(); len];
         let (mut want, mut got) = (vec![0.0; len], vec![0.0; len]);
         (0..4).all(|c| {
-            self.call_lanes8(kernel, c, &mut packed);
-            (0..WIDE_LANES).all(|l| {
-                self.call_generated(kernel, c * WIDE_LANES + l, &mut want);
-                for (g, p) in got.iter_mut().zip(&packed) {
-                    *g = p.to_array()[l];
-                }
+            (0..width).all(|l| {
+                lane(c, l, &mut got);
+                self.call_generated(kernel, c * width + l, &mut want);
                 want.iter()
                     .zip(&got)
                     .all(|(a, b)| a.to_bits() == b.to_bits())
@@ -553,18 +569,12 @@ impl Case {
     /// True when every lane of [`Case::call_lanes`] equals [`Case::call_generated`] on its
     /// sample, bit for bit, over the first few packs.
     pub fn lanes_match(&self, kernel: Kernel) -> bool {
-        let len = self.out_len(kernel);
-        let mut packed = vec![Pack::default(); len];
-        let (mut want, mut got) = (vec![0.0; len], vec![0.0; len]);
-        (0..4).all(|c| {
-            self.call_lanes(kernel, c, &mut packed);
-            (0..LANES).all(|l| {
-                self.call_generated(kernel, c * LANES + l, &mut want);
-                crate::pack::lane(&packed, l, &mut got);
-                want.iter()
-                    .zip(&got)
-                    .all(|(a, b)| a.to_bits() == b.to_bits())
-            })
+        let mut packed = vec![Pack::default(); self.out_len(kernel)];
+        self.every_lane_matches(kernel, LANES, |c, l, got| {
+            if l == 0 {
+                self.call_lanes(kernel, c, &mut packed);
+            }
+            crate::pack::lane(&packed, l, got);
         })
     }
 

@@ -192,3 +192,21 @@ fn peak_rss_is_reported_on_linux() {
         assert!(peak_rss_mb() > 0.0);
     }
 }
+
+/// The lane check the bench runs before timing says no when a lane holds another sample's
+/// output, and yes for the kernels as they are, in both widths.
+#[test]
+fn the_lane_check_catches_a_lane_from_another_sample() {
+    let arm = crate::arms::find("planar2").expect("planar2");
+    let case = Case::new(arm);
+    for kernel in Kernel::ALL {
+        assert!(
+            case.lanes_match(kernel) && case.lanes8_match(kernel),
+            "{kernel:?}"
+        );
+        let shifted = case.every_lane_matches(kernel, 4, |c, l, got| {
+            case.call_generated(kernel, c * 4 + (l + 1) % 4, got);
+        });
+        assert!(!shifted, "{kernel:?}: a shifted lane passed");
+    }
+}
