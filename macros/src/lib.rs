@@ -489,7 +489,8 @@ pub fn kernel_methods(input: TokenStream) -> TokenStream {
 }
 
 /// Defines `pub enum Kernel` (one variant per kernel of `generated/kernels.toml`, in its order)
-/// with `ALL`, `name`, `out_len` and the calls `call` / `call_lanes` through a `&dyn Model`.
+/// with `ALL`, `name`, `out_len` and the calls `call` / `call_lanes` / `call_lanes8` through a
+/// `&dyn Model`.
 #[proc_macro]
 pub fn kernel_enum(input: TokenStream) -> TokenStream {
     if !input.is_empty() {
@@ -512,21 +513,90 @@ pub fn kernel_enum(input: TokenStream) -> TokenStream {
             .iter()
             .map(|k| syn::parse_str::<syn::Expr>(&k.out_len).map_err(|e| e.to_string()))
             .collect::<Result<Vec<_>, _>>()?;
-        let methods: Vec<Ident> = kernels
-            .iter()
-            .map(|k| format_ident!("{}", k.name))
-            .collect();
-        let lanes: Vec<Ident> = kernels
-            .iter()
-            .map(|k| format_ident!("{}_lanes", k.name))
-            .collect();
-        let lanes8: Vec<Ident> = kernels
-            .iter()
-            .map(|k| format_ident!("{}_lanes8", k.name))
-            .collect();
         let args: Vec<Vec<Ident>> = kernels
             .iter()
             .map(|k| k.inputs.iter().map(|i| format_ident!("{}", i)).collect())
+            .collect();
+        // The forms of every kernel, one call each: `Kernel`'s method, the value type, the `Model`
+        // method's suffix, the doc.
+        let forms = [
+            (
+                format_ident!("call"),
+                quote!(f64),
+                "",
+                "Calls this kernel of `model`; inputs it does not take are ignored (`theta`: base parameters).",
+            ),
+            (
+                format_ident!("call_lanes"),
+                quote!(crate::pack::Pack),
+                "_lanes",
+                "Calls the lane-batched copy of this kernel of `model` (see [`crate::pack`]).",
+            ),
+            (
+                format_ident!("call_lanes8"),
+                quote!(crate::pack::wide::Pack8),
+                "_lanes8",
+                "Calls the eight-lane copy of this kernel of `model` (see [`crate::pack::wide`]).",
+            ),
+        ];
+        let kernel_calls = forms.iter().map(|(call, ty, _, doc)| {
+            quote! {
+                #[doc = #doc]
+                #[inline]
+                pub fn #call(
+                    self,
+                    model: &dyn Model,
+                    q: &[#ty],
+                    dq: &[#ty],
+                    ddq: &[#ty],
+                    theta: &[#ty],
+                    out: &mut [#ty],
+                ) {
+                    match self {
+                        #(Kernel::#variants => <kernel_calls::#variants as KernelCall>::#call(
+                            model, q, dq, ddq, theta, out,
+                        ),)*
+                    }
+                }
+            }
+        });
+        let trait_calls = forms.iter().map(|(call, ty, _, _)| {
+            let doc = format!("[`Kernel::{call}`] of this kind.");
+            quote! {
+                #[doc = #doc]
+                fn #call(
+                    model: &dyn Model,
+                    q: &[#ty],
+                    dq: &[#ty],
+                    ddq: &[#ty],
+                    theta: &[#ty],
+                    out: &mut [#ty],
+                );
+            }
+        });
+        let variant_calls: Vec<proc_macro2::TokenStream> = kernels
+            .iter()
+            .zip(&args)
+            .map(|(k, args)| {
+                let calls = forms.iter().map(|(call, ty, suffix, _)| {
+                    let method = format_ident!("{}{}", k.name, suffix);
+                    quote! {
+                        #[inline(always)]
+                        fn #call(
+                            model: &dyn Model,
+                            q: &[#ty],
+                            dq: &[#ty],
+                            ddq: &[#ty],
+                            theta: &[#ty],
+                            out: &mut [#ty],
+                        ) {
+                            let _ = (q, dq, ddq, theta);
+                            model.#method(#(#args,)* out)
+                        }
+                    }
+                });
+                quote!(#(#calls)*)
+            })
             .collect();
         let path = path_str(&path);
         Ok(quote! {
@@ -562,61 +632,7 @@ pub fn kernel_enum(input: TokenStream) -> TokenStream {
                     }
                 }
 
-                /// Calls this kernel of `model`; inputs it does not take are ignored
-                /// (`theta`: base parameters).
-                #[inline]
-                pub fn call(
-                    self,
-                    model: &dyn Model,
-                    q: &[f64],
-                    dq: &[f64],
-                    ddq: &[f64],
-                    theta: &[f64],
-                    out: &mut [f64],
-                ) {
-                    match self {
-                        #(Kernel::#variants => <kernel_calls::#variants as KernelCall>::call(
-                            model, q, dq, ddq, theta, out,
-                        ),)*
-                    }
-                }
-
-                /// Calls the lane-batched copy of this kernel of `model` (see [`crate::pack`]).
-                #[inline]
-                pub fn call_lanes(
-                    self,
-                    model: &dyn Model,
-                    q: &[crate::pack::Pack],
-                    dq: &[crate::pack::Pack],
-                    ddq: &[crate::pack::Pack],
-                    theta: &[crate::pack::Pack],
-                    out: &mut [crate::pack::Pack],
-                ) {
-                    match self {
-                        #(Kernel::#variants => <kernel_calls::#variants as KernelCall>::call_lanes(
-                            model, q, dq, ddq, theta, out,
-                        ),)*
-                    }
-                }
-
-                /// Calls the eight-lane copy of this kernel of `model` (see
-                /// [`crate::pack::wide`]).
-                #[inline]
-                pub fn call_lanes8(
-                    self,
-                    model: &dyn Model,
-                    q: &[crate::pack::wide::Pack8],
-                    dq: &[crate::pack::wide::Pack8],
-                    ddq: &[crate::pack::wide::Pack8],
-                    theta: &[crate::pack::wide::Pack8],
-                    out: &mut [crate::pack::wide::Pack8],
-                ) {
-                    match self {
-                        #(Kernel::#variants => <kernel_calls::#variants as KernelCall>::call_lanes8(
-                            model, q, dq, ddq, theta, out,
-                        ),)*
-                    }
-                }
+                #(#kernel_calls)*
 
                 /// Runs `v` with this kernel kind as a type ([`KernelCall`]): a loop that calls
                 /// one kernel many times chooses it once, outside the loop, instead of matching
@@ -634,33 +650,7 @@ pub fn kernel_enum(input: TokenStream) -> TokenStream {
             pub trait KernelCall {
                 /// The kind.
                 const KERNEL: Kernel;
-                /// [`Kernel::call`] of this kind.
-                fn call(
-                    model: &dyn Model,
-                    q: &[f64],
-                    dq: &[f64],
-                    ddq: &[f64],
-                    theta: &[f64],
-                    out: &mut [f64],
-                );
-                /// [`Kernel::call_lanes`] of this kind.
-                fn call_lanes(
-                    model: &dyn Model,
-                    q: &[crate::pack::Pack],
-                    dq: &[crate::pack::Pack],
-                    ddq: &[crate::pack::Pack],
-                    theta: &[crate::pack::Pack],
-                    out: &mut [crate::pack::Pack],
-                );
-                /// [`Kernel::call_lanes8`] of this kind.
-                fn call_lanes8(
-                    model: &dyn Model,
-                    q: &[crate::pack::wide::Pack8],
-                    dq: &[crate::pack::wide::Pack8],
-                    ddq: &[crate::pack::wide::Pack8],
-                    theta: &[crate::pack::wide::Pack8],
-                    out: &mut [crate::pack::wide::Pack8],
-                );
+                #(#trait_calls)*
             }
 
             /// Work to run with a kernel kind fixed at compile time ([`Kernel::with`]).
@@ -681,42 +671,7 @@ pub fn kernel_enum(input: TokenStream) -> TokenStream {
 
                     impl KernelCall for #variants {
                         const KERNEL: Kernel = Kernel::#variants;
-                        #[inline(always)]
-                        fn call(
-                            model: &dyn Model,
-                            q: &[f64],
-                            dq: &[f64],
-                            ddq: &[f64],
-                            theta: &[f64],
-                            out: &mut [f64],
-                        ) {
-                            let _ = (q, dq, ddq, theta);
-                            model.#methods(#(#args,)* out)
-                        }
-                        #[inline(always)]
-                        fn call_lanes(
-                            model: &dyn Model,
-                            q: &[crate::pack::Pack],
-                            dq: &[crate::pack::Pack],
-                            ddq: &[crate::pack::Pack],
-                            theta: &[crate::pack::Pack],
-                            out: &mut [crate::pack::Pack],
-                        ) {
-                            let _ = (q, dq, ddq, theta);
-                            model.#lanes(#(#args,)* out)
-                        }
-                        #[inline(always)]
-                        fn call_lanes8(
-                            model: &dyn Model,
-                            q: &[crate::pack::wide::Pack8],
-                            dq: &[crate::pack::wide::Pack8],
-                            ddq: &[crate::pack::wide::Pack8],
-                            theta: &[crate::pack::wide::Pack8],
-                            out: &mut [crate::pack::wide::Pack8],
-                        ) {
-                            let _ = (q, dq, ddq, theta);
-                            model.#lanes8(#(#args,)* out)
-                        }
+                        #variant_calls
                     }
                 )*
             }
