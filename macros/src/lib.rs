@@ -539,19 +539,16 @@ pub fn kernel_enum(input: TokenStream) -> TokenStream {
                 "Calls the eight-lane copy of this kernel of `model` (see [`crate::pack::wide`]).",
             ),
         ];
+        // The parameters every call of a form takes (`ty`: its value type).
+        let params = |ty: &proc_macro2::TokenStream| {
+            quote!(model: &dyn Model, q: &[#ty], dq: &[#ty], ddq: &[#ty], theta: &[#ty], out: &mut [#ty])
+        };
         let kernel_calls = forms.iter().map(|(call, ty, _, doc)| {
+            let params = params(ty);
             quote! {
                 #[doc = #doc]
                 #[inline]
-                pub fn #call(
-                    self,
-                    model: &dyn Model,
-                    q: &[#ty],
-                    dq: &[#ty],
-                    ddq: &[#ty],
-                    theta: &[#ty],
-                    out: &mut [#ty],
-                ) {
+                pub fn #call(self, #params) {
                     match self {
                         #(Kernel::#variants => <kernel_calls::#variants as KernelCall>::#call(
                             model, q, dq, ddq, theta, out,
@@ -562,16 +559,10 @@ pub fn kernel_enum(input: TokenStream) -> TokenStream {
         });
         let trait_calls = forms.iter().map(|(call, ty, _, _)| {
             let doc = format!("[`Kernel::{call}`] of this kind.");
+            let params = params(ty);
             quote! {
                 #[doc = #doc]
-                fn #call(
-                    model: &dyn Model,
-                    q: &[#ty],
-                    dq: &[#ty],
-                    ddq: &[#ty],
-                    theta: &[#ty],
-                    out: &mut [#ty],
-                );
+                fn #call(#params);
             }
         });
         let variant_calls: Vec<proc_macro2::TokenStream> = kernels
@@ -580,16 +571,10 @@ pub fn kernel_enum(input: TokenStream) -> TokenStream {
             .map(|(k, args)| {
                 let calls = forms.iter().map(|(call, ty, suffix, _)| {
                     let method = format_ident!("{}{}", k.name, suffix);
+                    let params = params(ty);
                     quote! {
                         #[inline(always)]
-                        fn #call(
-                            model: &dyn Model,
-                            q: &[#ty],
-                            dq: &[#ty],
-                            ddq: &[#ty],
-                            theta: &[#ty],
-                            out: &mut [#ty],
-                        ) {
+                        fn #call(#params) {
                             let _ = (q, dq, ddq, theta);
                             model.#method(#(#args,)* out)
                         }
