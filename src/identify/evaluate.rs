@@ -7,7 +7,7 @@ use serde::Serialize;
 
 use super::base::BaseModel;
 use super::layout::Layout;
-use super::predict::{spread, Predicted};
+use super::predict::{interpolate, spread, Predicted};
 use super::prepare::{raw_cores, raw_in_core, Prepared};
 use super::rows::Rows;
 
@@ -228,7 +228,9 @@ pub fn raw_sums_sampled(
     total
 }
 
-/// Adds the residuals of one core's raw samples to `sums` (predictions `pc`).
+/// Adds the residuals of one core's raw samples to `sums` (predictions `pc`): the samples'
+/// grid positions, blocks and torques read once, then each model's and joint's sums in one
+/// sweep over them (in sample order, as every sum was always added).
 fn add_core(
     sums: &mut RawSums,
     p: &Prepared,
@@ -238,25 +240,55 @@ fn add_core(
     first_set: &[usize],
     pc: &Predicted,
 ) {
-    raw_in_core(p, core, 1, |_, _, tau, (k, s)| {
+    let n = sums.tss.len();
+    let mut pos: Vec<(usize, f64)> = Vec::new();
+    // Runs of consecutive samples in one block: (end, block).
+    let mut runs: Vec<(usize, usize)> = Vec::new();
+    let mut tau: Vec<Vec<f64>> = vec![Vec::new(); n];
+    raw_in_core(p, core, 1, |_, _, t, (k, s)| {
         let blk = p.block_of(k + usize::from(s >= 0.5), nblocks);
-        for (ss, t) in sums.tss.iter_mut().zip(tau) {
+        match runs.last_mut() {
+            Some((end, b)) if *b == blk => *end += 1,
+            _ => runs.push((pos.len() + 1, blk)),
+        }
+        pos.push((k, s));
+        for (c, &v) in tau.iter_mut().zip(t) {
+            c.push(v);
+        }
+    });
+    for (ss, t) in sums.tss.iter_mut().zip(&tau) {
+        for t in t {
             *ss += t * t;
         }
-        for (m, model) in models.iter().enumerate() {
-            let full = usize::from(model.x.is_some());
-            for (j, &t) in tau.iter().enumerate() {
-                if full == 1 {
-                    let e = t - pc.at(first_set[m], j, (k, s));
-                    sums.sse[m][j] += e * e;
-                }
-                if model.loo.is_some() {
-                    let e = t - pc.at(first_set[m] + full + blk, j, (k, s));
-                    sums.heldout[m][j] += e * e;
+    }
+    let sse = |acc: &mut f64, set: usize, j: usize, from: usize, to: usize| {
+        let (x, lo) = pc.of(set, j);
+        for (&(k, s), &t) in pos[from..to].iter().zip(&tau[j][from..to]) {
+            let e = t - interpolate(x, k - lo, s);
+            *acc += e * e;
+        }
+    };
+    for (m, model) in models.iter().enumerate() {
+        let full = usize::from(model.x.is_some());
+        for j in 0..n {
+            if full == 1 {
+                sse(&mut sums.sse[m][j], first_set[m], j, 0, pos.len());
+            }
+            if model.loo.is_some() {
+                let mut from = 0;
+                for &(to, blk) in &runs {
+                    sse(
+                        &mut sums.heldout[m][j],
+                        first_set[m] + full + blk,
+                        j,
+                        from,
+                        to,
+                    );
+                    from = to;
                 }
             }
         }
-    });
+    }
 }
 
 /// A fitted model and its errors.

@@ -142,13 +142,23 @@ impl Predicted {
 
     /// Set `c`'s prediction for joint `j` at grid position `(k, s)` (see [`super::prepare::grid_pos`]).
     pub(super) fn at(&self, c: usize, j: usize, (k, s): (usize, f64)) -> f64 {
-        let x = &self.pred[c][j];
-        let v = x[k - self.lo];
-        if s > 0.0 {
-            v + s * (x[k + 1 - self.lo] - v)
-        } else {
-            v
-        }
+        interpolate(&self.pred[c][j], k - self.lo, s)
+    }
+
+    /// Set `c`'s predictions for joint `j` on the window's grid samples (`[k - lo]`), and `lo`.
+    pub(super) fn of(&self, c: usize, j: usize) -> (&[f64], usize) {
+        (&self.pred[c][j], self.lo)
+    }
+}
+
+/// `x` at `i + s` (`0 ≤ s < 1`), linear between samples.
+#[inline]
+pub(super) fn interpolate(x: &[f64], i: usize, s: f64) -> f64 {
+    let v = x[i];
+    if s > 0.0 {
+        v + s * (x[i + 1] - v)
+    } else {
+        v
     }
 }
 

@@ -81,13 +81,10 @@ impl Chunk {
         hi: usize,
         keep: &[usize],
     ) -> Vec<f64> {
-        let mut nonzero = vec![false; width];
-        for r in rows.chunks_exact(width) {
-            for (z, v) in nonzero.iter_mut().zip(r) {
-                *z |= *v != 0.0;
-            }
-        }
-        let cols: Vec<usize> = (0..width).filter(|&c| nonzero[c]).collect();
+        // A column is known non-zero at its first non-zero value (almost always the first row).
+        let cols: Vec<usize> = (0..width)
+            .filter(|&c| rows.iter().skip(c).step_by(width).any(|&v| v != 0.0))
+            .collect();
         let mut out = vec![0.0; keep.len() * width];
         p.rfilter.as_zero_phase().apply_rows(
             rows,
