@@ -24,6 +24,8 @@ use std::fmt;
 use std::io::{BufRead, BufReader, Read, Write};
 use std::path::Path;
 
+use rayon::prelude::*;
+
 use crate::diag::{did_you_mean, Location};
 
 /// A sampled trajectory; `q`, `dq`, `ddq`, `tau` are row-major (`len() × dof`).
@@ -673,6 +675,98 @@ fn read_header<R: Read>(
     Ok((cols, header_line))
 }
 
+/// Records per batch of [`parse`].
+const BATCH: usize = 8192;
+
+/// Records read but not yet handed over, with each one's line, parsed cells and verdict.
+#[derive(Default)]
+struct Batch {
+    records: Vec<csv::ByteRecord>,
+    lines: Vec<usize>,
+    len: usize,
+    /// Row `i`'s cells in the canonical order: `values[i * width..]`.
+    values: Vec<f64>,
+    status: Vec<Parsed>,
+    /// What stopped the reading after the `len` records (the file's last word).
+    err: Option<DataError>,
+}
+
+/// One record's cells checked on their own (the time order is checked in sequence).
+enum Parsed {
+    Row(f64),
+    FieldCount(usize),
+    BadTime(DataErrorKind),
+    BadCell {
+        t: f64,
+        col: usize,
+        kind: DataErrorKind,
+    },
+}
+
+impl Batch {
+    /// Reads up to [`BATCH`] records (fewer at the end of the input or at an error).
+    fn read<R: Read>(
+        &mut self,
+        rdr: &mut csv::Reader<R>,
+        last_line: &mut usize,
+        file: &str,
+        gzip: bool,
+    ) {
+        self.len = 0;
+        while self.len < BATCH {
+            if self.records.len() == self.len {
+                self.records.push(csv::ByteRecord::new());
+                self.lines.push(0);
+            }
+            match rdr.read_byte_record(&mut self.records[self.len]) {
+                Ok(true) => {}
+                Ok(false) => break,
+                Err(e) => {
+                    self.err = Some(csv_error(e, file, *last_line, gzip));
+                    break;
+                }
+            }
+            let line = self.records[self.len]
+                .position()
+                .map_or(*last_line + 1, |p| p.line() as usize);
+            (*last_line, self.lines[self.len]) = (line, line);
+            self.len += 1;
+        }
+    }
+
+    /// Parses every record's cells, in parallel.
+    fn parse(&mut self, cols: &Columns, order: &[usize], width: usize) {
+        let n = self.len;
+        self.values.resize(n * width, 0.0);
+        self.status.resize_with(n, || Parsed::Row(0.0));
+        self.records[..n]
+            .par_iter()
+            .zip(self.values.par_chunks_mut(width))
+            .zip(&mut self.status[..n])
+            .with_min_len(512)
+            .for_each(|((rec, row), st)| *st = parse_record(rec, cols, order, row));
+    }
+}
+
+/// A record's cells into `row` (canonical order), or what is wrong with them, in the order a
+/// reader meets it: the field count, the time, then the cells left to right.
+fn parse_record(rec: &csv::ByteRecord, cols: &Columns, order: &[usize], row: &mut [f64]) -> Parsed {
+    if rec.len() != cols.names.len() {
+        return Parsed::FieldCount(rec.len());
+    }
+    let t = match parse_cell(&rec[cols.t]) {
+        Ok(t) => t,
+        Err(kind) => return Parsed::BadTime(kind),
+    };
+    for (v, &col) in row.iter_mut().zip(order) {
+        match parse_cell(&rec[col]) {
+            Ok(x) => *v = x,
+            Err(kind) => return Parsed::BadCell { t, col, kind },
+        }
+    }
+    Parsed::Row(t)
+}
+
 fn parse<R: Read>(
     reader: R,
     file: &str,
@@ -700,59 +794,72 @@ fn parse<R: Read>(
     let order: Vec<usize> = std::iter::once(cols.t)
         .chain(cols.blocks.iter().flatten().flatten().copied())
         .collect();
-    let mut row = vec![0.0; layout.width()];
+    let width = layout.width();
     let (mut rows, mut prev) = (0usize, f64::NEG_INFINITY);
-
-    loop {
-        match rdr.read_byte_record(&mut record) {
-            Ok(true) => {}
-            Ok(false) => break,
-            Err(e) => return Err(csv_error(e, file, last_line, gzip)),
-        }
-        let line = record
-            .position()
-            .map_or(last_line + 1, |p| p.line() as usize);
-        last_line = line;
-        let at = |col: usize, kind| DataError {
-            loc: Location {
-                file: file.to_string(),
-                line: Some(line),
-                field: Some(cols.names[col].clone()),
-            },
-            kind: Box::new(kind),
-        };
-        if record.len() != ncols {
-            return Err(DataError {
+    // Records are read a batch at a time; a batch's cells are parsed on rayon's threads while
+    // this one reads the next, then its rows are checked and handed over in order (so the first
+    // error in the file is the one reported, as row by row).
+    let (mut cur, mut next) = (Batch::default(), Batch::default());
+    cur.read(&mut rdr, &mut last_line, file, gzip);
+    while cur.len > 0 || cur.err.is_some() {
+        let more = cur.err.is_none() && cur.len == BATCH;
+        rayon::in_place_scope(|s| {
+            s.spawn(|_| cur.parse(&cols, &order, width));
+            if more {
+                next.read(&mut rdr, &mut last_line, file, gzip);
+            }
+        });
+        for i in 0..cur.len {
+            let line = cur.lines[i];
+            let at = |col: usize, kind| DataError {
                 loc: Location {
                     file: file.to_string(),
                     line: Some(line),
-                    field: None,
+                    field: Some(cols.names[col].clone()),
                 },
-                kind: Box::new(DataErrorKind::FieldCount {
-                    found: record.len(),
-                    expected: ncols,
-                }),
-            });
+                kind: Box::new(kind),
+            };
+            let (tk, bad) = match std::mem::replace(&mut cur.status[i], Parsed::Row(0.0)) {
+                Parsed::FieldCount(found) => {
+                    return Err(DataError {
+                        loc: Location {
+                            file: file.to_string(),
+                            line: Some(line),
+                            field: None,
+                        },
+                        kind: Box::new(DataErrorKind::FieldCount {
+                            found,
+                            expected: ncols,
+                        }),
+                    })
+                }
+                Parsed::BadTime(kind) => return Err(at(cols.t, kind)),
+                Parsed::Row(tk) => (tk, None),
+                Parsed::BadCell { t, col, kind } => (t, Some((col, kind))),
+            };
+            if rows > 0 && tk <= prev {
+                return Err(at(
+                    cols.t,
+                    DataErrorKind::TimeNotIncreasing {
+                        previous: prev,
+                        current: tk,
+                    },
+                ));
+            }
+            if let Some((col, kind)) = bad {
+                return Err(at(col, kind));
+            }
+            sink(&layout, &cur.values[i * width..(i + 1) * width]).map_err(|e| DataError {
+                loc: Location::file(file),
+                kind: Box::new(DataErrorKind::TempFile(e)),
+            })?;
+            (rows, prev) = (rows + 1, tk);
         }
-        let cell = |col: usize| parse_cell(&record[col]).map_err(|kind| at(col, kind));
-        let tk = cell(cols.t)?;
-        if rows > 0 && tk <= prev {
-            return Err(at(
-                cols.t,
-                DataErrorKind::TimeNotIncreasing {
-                    previous: prev,
-                    current: tk,
-                },
-            ));
+        if let Some(e) = cur.err.take() {
+            return Err(e);
         }
-        for (v, &col) in row.iter_mut().zip(&order) {
-            *v = cell(col)?;
-        }
-        sink(&layout, &row).map_err(|e| DataError {
-            loc: Location::file(file),
-            kind: Box::new(DataErrorKind::TempFile(e)),
-        })?;
-        (rows, prev) = (rows + 1, tk);
+        std::mem::swap(&mut cur, &mut next);
+        next.len = 0;
     }
     if rows == 0 {
         return Err(DataError {

@@ -2,6 +2,8 @@
 //! window by window.
 
 use super::{DerivativeReport, Filter, Method, Options, States, SPECTRUM_PIECES, SPECTRUM_WHOLE};
+use rayon::prelude::*;
+
 use crate::data::Trajectory;
 use crate::log::Log;
 use crate::signal::{
@@ -194,26 +196,32 @@ impl Reader {
                 .collect()
         };
         let fs = 1.0 / self.grid.dt;
-        let mut psd: Vec<Option<Psd>> = Vec::new();
-        for &(lo, hi) in &pieces {
-            let w = self.rows_for(log, lo, hi);
-            let mut chans = self.on_grid(&w, &w.rows.q, lo, hi);
-            if let (Some(d), true) = (&w.rows.dq, integrate_dq) {
-                for x in self.on_grid(&w, d, lo, hi) {
-                    let mut acc = 0.0;
-                    chans.push(
-                        x.iter()
-                            .map(|v| {
-                                acc += v * self.grid.dt;
-                                acc
-                            })
-                            .collect(),
-                    );
+        // Each piece's spectra in parallel, summed in piece order (the same sums as one by one).
+        let spectra: Vec<Vec<Psd>> = pieces
+            .par_iter()
+            .map(|&(lo, hi)| {
+                let w = self.rows_for(log, lo, hi);
+                let mut chans = self.on_grid(&w, &w.rows.q, lo, hi);
+                if let (Some(d), true) = (&w.rows.dq, integrate_dq) {
+                    for x in self.on_grid(&w, d, lo, hi) {
+                        let mut acc = 0.0;
+                        chans.push(
+                            x.iter()
+                                .map(|v| {
+                                    acc += v * self.grid.dt;
+                                    acc
+                                })
+                                .collect(),
+                        );
+                    }
                 }
-            }
-            psd.resize_with(chans.len(), || None);
-            for (p, x) in psd.iter_mut().zip(&chans) {
-                let piece = Psd::of(x, fs);
+                chans.par_iter().map(|x| Psd::of(x, fs)).collect()
+            })
+            .collect();
+        let mut psd: Vec<Option<Psd>> = Vec::new();
+        for piece in spectra {
+            psd.resize_with(piece.len(), || None);
+            for (p, piece) in psd.iter_mut().zip(piece) {
                 match p {
                     Some(p) => p.add(&piece),
                     None => *p = Some(piece),

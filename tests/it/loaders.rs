@@ -133,6 +133,56 @@ fn csv_dof_is_inferred_when_not_given() {
     assert_eq!((traj.dof, traj.tau_at(0)), (3, Some(&[4.0, 5.0, 6.0][..])));
 }
 
+/// Long files are parsed a batch of rows at a time (in parallel): every row still arrives in
+/// order, and the first error in the file is the one reported, with its line, wherever it is.
+#[test]
+fn long_csv_files_read_whole_and_report_their_first_error() {
+    let rows = 30_001;
+    let mut text = String::from("t,q1,tau1\n");
+    for k in 0..rows {
+        text += &format!("{},{},{}\n", k as f64 * 1e-3, (k as f64).sin(), k);
+    }
+    let traj = Trajectory::from_reader(text.as_bytes(), "long.csv", Some(1)).unwrap();
+    assert_eq!(traj.t.len(), rows);
+    assert!(traj
+        .q
+        .iter()
+        .enumerate()
+        .all(|(k, &q)| q == (k as f64).sin()));
+    assert!((0..rows).all(|k| traj.tau_at(k) == Some(&[k as f64][..])));
+
+    // Line l holds sample l - 2 (the header is line 1).
+    let with = |edits: &[(usize, &str)]| {
+        let mut lines: Vec<String> = text.lines().map(str::to_string).collect();
+        for &(line, row) in edits {
+            lines[line - 1] = row.to_string();
+        }
+        let err = Trajectory::from_reader(lines.join("\n").as_bytes(), "long.csv", Some(1));
+        err.unwrap_err().to_string()
+    };
+    // A bad cell after the first batch, and a later time step back: the cell is first.
+    let e = with(&[(20_000, "19.998,x,1"), (25_000, "0,0,0")]);
+    assert!(
+        e.starts_with("long.csv:20000") && e.contains(": q1:"),
+        "{e}"
+    );
+    // A time step back across a batch boundary, before a bad cell in the same later batch.
+    let e = with(&[(8194, "0.0001,0,0"), (8200, "0.5,0,y")]);
+    assert!(
+        e.starts_with("long.csv:8194") && e.contains(": t: t = 0.0001 does not increase"),
+        "{e}"
+    );
+    // In one row, the time going back is reported before a bad cell (as the reader meets them).
+    let e = with(&[(17_000, "0.0001,z,0")]);
+    assert!(
+        e.starts_with("long.csv:17000") && e.contains(": t: t = 0.0001 does not increase"),
+        "{e}"
+    );
+    // A row with a cell missing, in the last (partial) batch.
+    let e = with(&[(rows + 1, "30.0,1")]);
+    assert!(e.starts_with(&format!("long.csv:{}", rows + 1)), "{e}");
+}
+
 #[test]
 fn torque_needs_derivative_columns() {
     let traj = Trajectory::from_reader("t,q1\n0,1\n".as_bytes(), "x.csv", Some(1)).unwrap();
