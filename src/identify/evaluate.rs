@@ -191,8 +191,12 @@ pub fn raw_sums_sampled(
                     }
                     let any_filtered = filtered.iter().any(|&f| f)
                         || (sampled.is_some() && p.smoothing.filtered_prediction);
-                    let mut pc =
-                        Predicted::new(p, &mut rows, &active, core, &sets, &wanted, any_filtered);
+                    let reach = if any_filtered {
+                        p.rfilter.as_zero_phase().reach()
+                    } else {
+                        1
+                    };
+                    let mut pc = Predicted::new(p, &mut rows, &active, core, &sets, &wanted, reach);
                     let mut out = vec![RawSums::zero(models.len(), n); predictions.len()];
                     let mut picked = Vec::new();
                     for pass in [false, true] {
@@ -226,6 +230,94 @@ pub fn raw_sums_sampled(
         offset += nblocks;
     }
     total
+}
+
+/// Held-out errors (leave-one-block-out, pooled) of one model per regression filter, from one
+/// evaluation of the rows: `variants[v]` are the same files prepared with filter `v` (same
+/// logs, grids, states and used samples; only the regression filter differs) and `loo[v]` the
+/// model's leave-one-block-out parameters fitted with it (over `subsets[v]`). Per variant `(from the estimated
+/// states, from the filtered rows)` — what [`raw_sums_each`] gives each variant on its own
+/// (windows reach as far as the widest filter: the same numbers to the filters' truncation,
+/// ~1e-8).
+pub(super) fn heldout_per_filter(
+    base: &BaseModel,
+    layout: &Layout,
+    variants: &[&[Prepared]],
+    blocks: &[usize],
+    subsets: &[&[usize]],
+    loo: &[&[Vec<f64>]],
+) -> Vec<(f64, f64)> {
+    let n = layout.dof;
+    let nv = variants.len();
+    let active: Vec<Vec<usize>> = (0..n).map(|j| layout.active(j)).collect();
+    // What `add_core` reads of the model: leave-one-block-out sets only.
+    let model = [Judged {
+        subset: &[],
+        x: None,
+        loo: Some(&[]),
+    }];
+    // Per variant, states then filtered.
+    let mut total = vec![RawSums::zero(1, n); 2 * nv];
+    let mut offset = 0;
+    for (fi, &nblocks) in blocks.iter().enumerate() {
+        // Coefficient sets `[variant · nblocks + block][joint][active column]`.
+        let sets: Vec<Vec<Vec<f64>>> = loo
+            .iter()
+            .zip(subsets)
+            .flat_map(|(l, subset)| {
+                (0..nblocks).map(|b| {
+                    (0..n)
+                        .map(|j| spread(&active[j], subset, &l[offset + b]))
+                        .collect()
+                })
+            })
+            .collect();
+        // The variant of the widest filter lays out the windows.
+        let reach = |v: usize| variants[v][fi].rfilter.as_zero_phase().reach();
+        let widest = (0..nv).max_by_key(|&v| reach(v)).unwrap_or(0);
+        let p = &variants[widest][fi];
+        let parts: Vec<Vec<RawSums>> = raw_cores(p)
+            .par_iter()
+            .map(|&core| {
+                let mut rows = Rows::new(base, layout);
+                let (b0, b1) = (
+                    p.block_of(core.0.saturating_sub(1), nblocks),
+                    p.block_of(core.1, nblocks),
+                );
+                let wanted: Vec<bool> = (0..sets.len())
+                    .map(|s| (b0..=b1).contains(&(s % nblocks)))
+                    .collect();
+                let states =
+                    Predicted::new(p, &mut rows, &active, core, &sets, &wanted, reach(widest));
+                let mut out = vec![RawSums::zero(1, n); 2 * nv];
+                for v in 0..nv {
+                    let pv = &variants[v][fi];
+                    let first = [v * nblocks];
+                    add_core(&mut out[2 * v], pv, core, nblocks, &model, &first, &states);
+                    let filtered = states.filtered_copy(pv, v * nblocks..(v + 1) * nblocks);
+                    add_core(
+                        &mut out[2 * v + 1],
+                        pv,
+                        core,
+                        nblocks,
+                        &model,
+                        &first,
+                        &filtered,
+                    );
+                }
+                out
+            })
+            .collect();
+        for part in &parts {
+            for (t, s) in total.iter_mut().zip(part) {
+                t.add(s);
+            }
+        }
+        offset += nblocks;
+    }
+    (0..nv)
+        .map(|v| (total[2 * v].heldout(0), total[2 * v + 1].heldout(0)))
+        .collect()
 }
 
 /// Adds the residuals of one core's raw samples to `sums` (predictions `pc`): the samples'

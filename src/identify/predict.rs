@@ -34,17 +34,13 @@ impl Predicted {
         (a, b): (usize, usize),
         coefs: &[Vec<Vec<f64>>],
         wanted: &[bool],
-        to_filter: bool,
+        reach: usize,
     ) -> Predicted {
         let (n, nc) = (rows.layout.dof, rows.layout.ncols());
         let g = p.est.grid;
         // One sample either side at least, for the interpolation to raw sample times; the
         // regression filter's reach when the predictions are to be filtered ([`Predicted::filter`]).
-        let reach = if to_filter {
-            p.rfilter.as_zero_phase().reach().max(1)
-        } else {
-            1
-        };
+        let reach = reach.max(1);
         let (lo, hi) = (a.saturating_sub(reach), (b + reach).min(g.n));
         let w = hi - lo;
         let mut pred: Vec<Vec<Vec<f64>>> = wanted
@@ -92,8 +88,25 @@ impl Predicted {
     /// The predictions from the filtered rows: those from the states, filtered. Built with
     /// `filtered`, the window reaches far enough; the samples of the core are then exact.
     pub(super) fn filter(&mut self, p: &Prepared) {
-        let mut chans: Vec<&mut [f64]> = self
-            .pred
+        self.filter_sets(p, 0..self.pred.len());
+    }
+
+    /// A copy of the predictions (not the states) with the sets `sets` filtered by `p`'s
+    /// regression filter ([`Predicted::filter_sets`]).
+    pub(super) fn filtered_copy(&self, p: &Prepared, sets: std::ops::Range<usize>) -> Predicted {
+        let mut out = Predicted {
+            lo: self.lo,
+            hi: self.hi,
+            pred: self.pred.clone(),
+            states: None,
+        };
+        out.filter_sets(p, sets);
+        out
+    }
+
+    /// [`Predicted::filter`] of the sets `sets` only, with `p`'s regression filter.
+    pub(super) fn filter_sets(&mut self, p: &Prepared, sets: std::ops::Range<usize>) {
+        let mut chans: Vec<&mut [f64]> = self.pred[sets]
             .iter_mut()
             .flatten()
             .map(|c| c.as_mut_slice())

@@ -5,7 +5,7 @@
 use nalgebra::{DMatrix, DVector};
 
 use super::base::BaseModel;
-use super::evaluate::{raw_sums, raw_sums_each, Judged, Prediction};
+use super::evaluate::{raw_sums_each, Judged, Prediction};
 use super::layout::Layout;
 use super::ls::{self, Accumulator};
 use super::prepare::{cores, Prepared};
@@ -106,34 +106,9 @@ impl Problem {
     }
 
     /// Held-out relative RMS error against the *measured* torque of the training files this
-    /// problem was built from: each block predicted by the fit on the other blocks,
-    /// `‖τ̂−τ‖/‖τ‖` pooled over blocks and joints.
-    pub fn cv_raw(
-        &self,
-        base: &BaseModel,
-        train: &[Prepared],
-        subset: &[usize],
-        w: &[f64],
-    ) -> Result<f64, RankError> {
-        let loo = self.loo_fits(subset, w)?;
-        let m = [Judged {
-            subset,
-            x: None,
-            loo: Some(&loo),
-        }];
-        let sums = raw_sums(
-            base,
-            &self.layout,
-            train,
-            Some(self.raw_blocks()),
-            &m,
-            Prediction::Chosen,
-        );
-        Ok(sums.heldout(0))
-    }
-
-    /// [`Problem::cv_raw`] of both predictions, from one evaluation of the rows: `(from the
-    /// estimated states, from the parallel-filtered rows)`.
+    /// problem was built from (each block predicted by the fit on the other blocks,
+    /// `‖τ̂−τ‖/‖τ‖` pooled over blocks and joints) of both predictions, from one evaluation of
+    /// the rows: `(from the estimated states, from the parallel-filtered rows)`.
     pub fn cv_raw_both(
         &self,
         base: &BaseModel,

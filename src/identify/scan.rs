@@ -10,6 +10,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::base::BaseModel;
+use super::evaluate::heldout_per_filter;
 use super::layout::{make_layout, Layout};
 use super::load_stage::LoadModel;
 use super::prepare::{PrepCache, Prepared, Smoothing};
@@ -227,7 +228,9 @@ impl Scan<'_> {
                 .collect()
         };
         let mut tables: Option<Vec<Arc<RowTable>>> = None;
-        let mut out = Vec::new();
+        // Each regression ratio's problem and leave-one-block-out fits; then all of them judged
+        // in one pass over the rows (the rows and states are the same for every ratio).
+        let mut fitted = Vec::new();
         for &ratio in self.ratios {
             let mut preps = prepare(ratio)?;
             if tables.is_none() {
@@ -243,28 +246,36 @@ impl Scan<'_> {
             let Ok(w) = problem.weights(&subset) else {
                 continue;
             };
-            let errors: Vec<(bool, f64)> = match self.modes[..] {
-                [filtered] => {
-                    for p in &mut preps {
-                        p.smoothing.filtered_prediction = filtered;
-                    }
-                    problem
-                        .cv_raw(self.base, &preps, &subset, &w)
-                        .map(|e| vec![(filtered, e)])
+            let Ok(loo) = problem.loo_fits(&subset, &w) else {
+                continue;
+            };
+            // The problem itself is dropped here (memory: one at a time, as before).
+            fitted.push((ratio, preps, problem.raw_blocks().to_vec(), subset, loo));
+        }
+        let Some((_, _, first, ..)) = fitted.first() else {
+            self.cfg.progress.step();
+            return Ok(Vec::new());
+        };
+        // The same files and blocks (the kept samples do not depend on the ratio).
+        debug_assert!(fitted.iter().all(|f| f.2 == *first));
+        let variants: Vec<&[Prepared]> = fitted.iter().map(|f| f.1.as_slice()).collect();
+        let subsets: Vec<&[usize]> = fitted.iter().map(|f| f.3.as_slice()).collect();
+        let loo: Vec<&[Vec<f64>]> = fitted.iter().map(|f| f.4.as_slice()).collect();
+        let errors = heldout_per_filter(self.base, self.layout, &variants, first, &subsets, &loo);
+        let mut out = Vec::new();
+        for ((ratio, ..), (states, filtered)) in fitted.iter().zip(errors) {
+            for (mode, e) in [(false, states), (true, filtered)] {
+                if self.modes.contains(&mode) {
+                    out.push(CutoffTrial {
+                        cutoff_hz: fc,
+                        smoothing: Smoothing {
+                            filtered_prediction: mode,
+                            ..sm(*ratio)
+                        },
+                        heldout_error: e,
+                    });
                 }
-                _ => problem
-                    .cv_raw_both(self.base, &preps, &subset, &w)
-                    .map(|(s, f)| vec![(false, s), (true, f)]),
             }
-            .unwrap_or_default();
-            out.extend(errors.into_iter().map(|(filtered, e)| CutoffTrial {
-                cutoff_hz: fc,
-                smoothing: Smoothing {
-                    filtered_prediction: filtered,
-                    ..sm(ratio)
-                },
-                heldout_error: e,
-            }));
         }
         self.cfg.progress.step();
         Ok(out)
@@ -404,6 +415,58 @@ mod tests {
         let mut stale = plain.clone();
         stale[0].rows = Some(Arc::new(RowTable::new(&plain[0], &base, &other, None)));
         assert_eq!(judge(&stale), a);
+    }
+
+    /// The scan judges every regression ratio of a cut-off in one pass over the rows: the
+    /// same held-out errors as judging each ratio's problem on its own.
+    #[test]
+    fn one_pass_judges_every_ratio_as_each_would_be_judged_alone() {
+        use crate::effects::Effect;
+        use crate::identify::synth::{generate, Spec};
+        let arm = crate::arms::resolve("planar2").unwrap();
+        let table = arm.dh_table().unwrap();
+        let mut spec = Spec::new(table.clone(), 7).with_effect(Effect::Viscous, 1, 0.3);
+        spec.duration = 40.0;
+        spec.rate_hz = 500.0;
+        let log = Log::from(generate(&spec));
+        let base = BaseModel::for_arm(&arm);
+        let cfg = Config::default();
+        let (fc, edge) = (2.0, Some(1.0));
+        let prep = |ratio| {
+            let sm = Smoothing {
+                regression_ratio: ratio,
+                filtered_prediction: false,
+            };
+            vec![Prepared::with_cutoff(log.clone(), &cfg, Some(fc), sm, edge).unwrap()]
+        };
+        let (a, b) = (prep(1.0), prep(0.5));
+        // The two filters' windows differ (so the shared pass lays them out by the wider).
+        assert!(b[0].rfilter.as_zero_phase().reach() > a[0].rfilter.as_zero_phase().reach());
+        let layout = make_layout(&base, Some(&table), &a, &cfg).0;
+        let alone = |preps: &[Prepared]| {
+            let p = Problem::build(&base, layout.clone(), preps, cfg.blocks);
+            let subset = p.independent(&p.subset(&layout.terms));
+            let w = p.weights(&subset).unwrap();
+            let errors = p.cv_raw_both(&base, preps, &subset, &w).unwrap();
+            let loo = p.loo_fits(&subset, &w).unwrap();
+            (errors, subset, loo, p.raw_blocks().to_vec())
+        };
+        let ((ea, sa, la, blocks), (eb, sb, lb, _)) = (alone(&a), alone(&b));
+        let both = heldout_per_filter(&base, &layout, &[&a, &b], &blocks, &[&sa, &sb], &[&la, &lb]);
+        // Windows of other margins: the filters' truncation (~1.5e-8 of the signal) and the
+        // states' windows (~1e-7 of its range, estimator.rs) bound the difference.
+        let close = |u: f64, v: f64| (u - v).abs() <= 1e-7 * u.abs().max(v.abs());
+        for (got, want) in both.iter().zip([ea, eb]) {
+            assert!(
+                close(got.0, want.0) && close(got.1, want.1),
+                "{got:?} {want:?}"
+            );
+        }
+        // Four different numbers: a mix-up of ratios or predictions would show.
+        assert!(
+            (ea.0 - eb.0).abs() > 1e-6 * ea.0 && (ea.0 - ea.1).abs() > 1e-6 * ea.0,
+            "{ea:?} {eb:?}"
+        );
     }
 
     #[test]

@@ -212,8 +212,17 @@ impl Butterworth {
             let v = at(i);
             ext[pl - i] = std::array::from_fn(|l| 2.0 * first[l] - v[l]);
         }
-        for k in 0..n {
-            ext[pl + k] = at(k);
+        if cols.windows(2).all(|w| w[1] == w[0] + 1) {
+            // Adjacent columns (the usual case): one contiguous load per row.
+            for (e, r) in ext[pl..pl + n].iter_mut().zip(x.chunks_exact(stride)) {
+                *e = r[cols[0]..cols[0] + L]
+                    .try_into()
+                    .expect("L adjacent columns");
+            }
+        } else {
+            for k in 0..n {
+                ext[pl + k] = at(k);
+            }
         }
         for i in 1..=pr {
             let v = at(n - 1 - i);
