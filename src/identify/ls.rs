@@ -77,6 +77,10 @@ impl Accumulator {
     pub fn push(&mut self, row: &[f64]) {
         debug_assert_eq!(row.len(), self.cols);
         let i = self.pending;
+        if self.buf.is_empty() {
+            // Released by `finish`: rows after it are buffered anew.
+            self.buf = vec![0.0; self.map.len() * BLOCK];
+        }
         for (l, &c) in self.map.iter().enumerate() {
             self.buf[l * BLOCK + i] = row[c];
         }
@@ -133,9 +137,11 @@ impl Accumulator {
         &self.r
     }
 
-    /// Folds in buffered rows.
+    /// Folds in buffered rows and releases the row buffer (a finished factor is kept for its
+    /// fits, often many at once).
     pub fn finish(&mut self) {
         self.flush();
+        self.buf = Vec::new();
     }
 
     /// Sum of squares of the target column, `Σ τ²`.

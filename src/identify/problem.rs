@@ -9,7 +9,7 @@ use super::evaluate::{raw_sums_each, Judged, Prediction};
 use super::layout::Layout;
 use super::ls::{self, Accumulator};
 use super::prepare::{cores, Prepared};
-use super::regress::accumulate_fit;
+use super::regress::{accumulate_fit, accumulate_fits};
 use super::RankError;
 use crate::effects::Term;
 
@@ -88,21 +88,61 @@ impl Problem {
         train: &[Prepared],
         target_blocks: usize,
     ) -> Self {
-        let total_rows: usize = train.iter().map(|p| p.keep.1 - p.keep.0).sum();
-        let (mut blocks, mut file_blocks) = (Vec::new(), Vec::new());
-        for p in train {
-            let share = (target_blocks as f64 * (p.keep.1 - p.keep.0) as f64
-                / total_rows.max(1) as f64)
-                .round() as usize;
-            blocks.extend(accumulate_fit(p, base, &layout, share.max(2)));
-            file_blocks.push(share.max(2));
+        let (file_blocks, files) = Self::file_blocks(train, target_blocks);
+        let mut blocks = Vec::new();
+        for (p, &nb) in train.iter().zip(&file_blocks) {
+            blocks.extend(accumulate_fit(p, base, &layout, nb));
         }
+        Problem::new(layout, blocks, file_blocks, files)
+    }
+
+    /// [`Problem::build`] of the same files prepared with each of several regression filters
+    /// (`variants[v]`: the files, prepared with filter `v`), from one evaluation of each
+    /// file's rows ([`accumulate_fits`]).
+    pub(super) fn build_variants(
+        base: &BaseModel,
+        layout: &Layout,
+        variants: &[&[Prepared]],
+        target_blocks: usize,
+    ) -> Vec<Self> {
+        let Some(first) = variants.first() else {
+            return Vec::new();
+        };
+        let (file_blocks, files) = Self::file_blocks(first, target_blocks);
+        let mut blocks: Vec<Vec<Vec<Accumulator>>> = vec![Vec::new(); variants.len()];
+        for (f, &nb) in file_blocks.iter().enumerate() {
+            let ps: Vec<&Prepared> = variants.iter().map(|v| &v[f]).collect();
+            for (b, fit) in blocks
+                .iter_mut()
+                .zip(accumulate_fits(&ps, base, layout, nb))
+            {
+                b.extend(fit);
+            }
+        }
+        blocks
+            .into_iter()
+            .map(|b| Problem::new(layout.clone(), b, file_blocks.clone(), files.clone()))
+            .collect()
+    }
+
+    /// Blocks per file (proportional to each file's kept length, ≥ 2) and the files' names.
+    fn file_blocks(train: &[Prepared], target_blocks: usize) -> (Vec<usize>, String) {
+        let total_rows: usize = train.iter().map(|p| p.keep.1 - p.keep.0).sum();
+        let blocks = train
+            .iter()
+            .map(|p| {
+                let share = (target_blocks as f64 * (p.keep.1 - p.keep.0) as f64
+                    / total_rows.max(1) as f64)
+                    .round() as usize;
+                share.max(2)
+            })
+            .collect();
         let files = train
             .iter()
             .map(|p| p.name.as_str())
             .collect::<Vec<_>>()
             .join(", ");
-        Problem::new(layout, blocks, file_blocks, files)
+        (blocks, files)
     }
 
     /// Held-out relative RMS error against the *measured* torque of the training files this

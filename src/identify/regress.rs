@@ -107,13 +107,34 @@ pub(super) fn accumulate_fit(
     layout: &Layout,
     nblocks: usize,
 ) -> Vec<Vec<Accumulator>> {
+    let mut all = accumulate_fits(&[p], base, layout, nblocks);
+    all.pop().expect("one file variant in, one out")
+}
+
+/// [`accumulate_fit`] of the same file prepared with several regression filters (`variants`:
+/// the same log, grid, states and kept samples), from one evaluation of its rows: chunks laid
+/// out by the widest filter, each variant filtering its own reach of them.
+pub(super) fn accumulate_fits(
+    variants: &[&Prepared],
+    base: &BaseModel,
+    layout: &Layout,
+    nblocks: usize,
+) -> Vec<Vec<Vec<Accumulator>>> {
     let (n, nc) = (layout.dof, layout.ncols());
-    let decim = decimation(p);
-    // `[joint][block]` while accumulating, so joints run in parallel.
-    let mut accs: Vec<Vec<Accumulator>> = layout
-        .accumulators()
-        .into_iter()
-        .map(|a| vec![a; nblocks])
+    let reach = |p: &Prepared| p.rfilter.as_zero_phase().reach();
+    let Some(&p) = variants.iter().max_by_key(|p| reach(p)) else {
+        return Vec::new();
+    };
+    // Per variant `[joint][block]` while accumulating, so joints run in parallel.
+    let mut accs: Vec<Vec<Vec<Accumulator>>> = variants
+        .iter()
+        .map(|_| {
+            layout
+                .accumulators()
+                .into_iter()
+                .map(|a| vec![a; nblocks])
+                .collect()
+        })
         .collect();
     let active: Vec<Vec<usize>> = (0..n).map(|j| layout.active(j)).collect();
     let mut rows = Rows::new(base, layout);
@@ -124,29 +145,35 @@ pub(super) fn accumulate_fit(
     let mut next = all.first().map(|&c| Chunk::new(p, &mut rows, &active, c));
     for (i, &(a, b)) in all.iter().enumerate() {
         let Some(chunk) = next.take() else { break };
-        let (lo, hi) = (chunk.lo, chunk.hi);
-        let (keep, blocks): (Vec<usize>, Vec<usize>) = (a..b)
-            .filter(|&k| (k - k0) % decim == 0)
-            .map(|k| (k - lo, p.block_of(k, nblocks)))
-            .unzip();
         let fold = || {
-            chunk
-                .rows
-                .par_iter()
-                .zip(accs.par_iter_mut())
-                .zip(active.par_iter())
-                .for_each(|((rj, acc), act)| {
-                    let width = act.len() + 1;
-                    let kept = Chunk::filter_joint(p, rj, width, lo, hi, &keep);
-                    let mut row = vec![0.0; nc + 1];
-                    for (r, &blk) in kept.chunks_exact(width).zip(&blocks) {
-                        for (l, &c) in act.iter().enumerate() {
-                            row[c] = r[l];
+            for (v, accs) in variants.iter().zip(accs.iter_mut()) {
+                // This variant's own reach of the chunk's rows.
+                let r = reach(v);
+                let (lo, hi) = (a.saturating_sub(r).max(chunk.lo), (b + r).min(chunk.hi));
+                let decim = decimation(v);
+                let (keep, blocks): (Vec<usize>, Vec<usize>) = (a..b)
+                    .filter(|&k| (k - k0) % decim == 0)
+                    .map(|k| (k - lo, v.block_of(k, nblocks)))
+                    .unzip();
+                chunk
+                    .rows
+                    .par_iter()
+                    .zip(accs.par_iter_mut())
+                    .zip(active.par_iter())
+                    .for_each(|((rj, acc), act)| {
+                        let width = act.len() + 1;
+                        let rj = &rj[(lo - chunk.lo) * width..(hi - chunk.lo) * width];
+                        let kept = Chunk::filter_joint(v, rj, width, lo, hi, &keep);
+                        let mut row = vec![0.0; nc + 1];
+                        for (r, &blk) in kept.chunks_exact(width).zip(&blocks) {
+                            for (l, &c) in act.iter().enumerate() {
+                                row[c] = r[l];
+                            }
+                            row[nc] = r[act.len()];
+                            acc[blk].push(&row);
                         }
-                        row[nc] = r[act.len()];
-                        acc[blk].push(&row);
-                    }
-                });
+                    });
+            }
         };
         let ahead = || {
             all.get(i + 1)
@@ -154,7 +181,9 @@ pub(super) fn accumulate_fit(
         };
         next = rayon::join(fold, ahead).1;
     }
-    finish_transposed(accs, nblocks)
+    accs.into_iter()
+        .map(|a| finish_transposed(a, nblocks))
+        .collect()
 }
 
 /// `[joint][block]` → finished `[block][joint]`.

@@ -228,9 +228,8 @@ impl Scan<'_> {
                 .collect()
         };
         let mut tables: Option<Vec<Arc<RowTable>>> = None;
-        // Each regression ratio's problem and leave-one-block-out fits; then all of them judged
-        // in one pass over the rows (the rows and states are the same for every ratio).
-        let mut fitted = Vec::new();
+        // Every regression ratio's files (the same rows: the table, if any, is shared) ...
+        let mut variants: Vec<Vec<Prepared>> = Vec::new();
         for &ratio in self.ratios {
             let mut preps = prepare(ratio)?;
             if tables.is_none() {
@@ -241,7 +240,14 @@ impl Scan<'_> {
                     p.rows = Some(Arc::clone(t));
                 }
             }
-            let problem = Problem::build(self.base, self.layout.clone(), &preps, self.cfg.blocks);
+            variants.push(preps);
+        }
+        // ... their problems built from one evaluation of the rows, and then all of them judged
+        // in one more pass.
+        let shared: Vec<&[Prepared]> = variants.iter().map(Vec::as_slice).collect();
+        let problems = Problem::build_variants(self.base, self.layout, &shared, self.cfg.blocks);
+        let mut fitted = Vec::new();
+        for ((&ratio, preps), problem) in self.ratios.iter().zip(variants).zip(problems) {
             let subset = problem.independent(&problem.subset(self.all));
             let Ok(w) = problem.weights(&subset) else {
                 continue;
@@ -249,7 +255,7 @@ impl Scan<'_> {
             let Ok(loo) = problem.loo_fits(&subset, &w) else {
                 continue;
             };
-            // The problem itself is dropped here (memory: one at a time, as before).
+            // Only the fits are kept (each problem is dropped here).
             fitted.push((ratio, preps, problem.raw_blocks().to_vec(), subset, loo));
         }
         let Some((_, _, first, ..)) = fitted.first() else {
@@ -417,10 +423,11 @@ mod tests {
         assert_eq!(judge(&stale), a);
     }
 
-    /// The scan judges every regression ratio of a cut-off in one pass over the rows: the
-    /// same held-out errors as judging each ratio's problem on its own.
+    /// The scan builds every regression ratio's problem of a cut-off in one pass over the rows
+    /// and judges them all in another: the same fits and held-out errors as each ratio's
+    /// problem built and judged on its own.
     #[test]
-    fn one_pass_judges_every_ratio_as_each_would_be_judged_alone() {
+    fn one_pass_builds_and_one_judges_every_ratio_as_each_would_be_alone() {
         use crate::effects::Effect;
         use crate::identify::synth::{generate, Spec};
         let arm = crate::arms::resolve("planar2").unwrap();
@@ -449,9 +456,25 @@ mod tests {
             let w = p.weights(&subset).unwrap();
             let errors = p.cv_raw_both(&base, preps, &subset, &w).unwrap();
             let loo = p.loo_fits(&subset, &w).unwrap();
-            (errors, subset, loo, p.raw_blocks().to_vec())
+            let x = p.fit(&subset, &w).unwrap().x;
+            (errors, subset, loo, p.raw_blocks().to_vec(), (w, x))
         };
-        let ((ea, sa, la, blocks), (eb, sb, lb, _)) = (alone(&a), alone(&b));
+        let ((ea, sa, la, blocks, fa), (eb, sb, lb, _, fb)) = (alone(&a), alone(&b));
+        // Both problems built from one evaluation of the rows: the fits of each built alone.
+        let built = Problem::build_variants(&base, &layout, &[&a, &b], cfg.blocks);
+        for ((p, subset), (w, x)) in built.iter().zip([&sa, &sb]).zip([&fa, &fb]) {
+            let got = p.fit(subset, w).unwrap().x;
+            let close = |u: f64, v: f64| (u - v).abs() <= 1e-7 * u.abs().max(v.abs()).max(1e-9);
+            assert!(
+                got.iter().zip(x).all(|(u, v)| close(*u, *v)),
+                "{got:?} {x:?}"
+            );
+        }
+        assert!(fa
+            .1
+            .iter()
+            .zip(&fb.1)
+            .any(|(u, v)| (u - v).abs() > 1e-6 * u.abs()));
         let both = heldout_per_filter(&base, &layout, &[&a, &b], &blocks, &[&sa, &sb], &[&la, &lb]);
         // Windows of other margins: the filters' truncation (~1.5e-8 of the signal) and the
         // states' windows (~1e-7 of its range, estimator.rs) bound the difference.
