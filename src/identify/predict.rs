@@ -36,7 +36,7 @@ impl Predicted {
         wanted: &[bool],
         reach: usize,
     ) -> Predicted {
-        let (n, nc) = (rows.layout.dof, rows.layout.ncols());
+        let n = rows.layout.dof;
         let g = p.est.grid;
         // One sample either side at least, for the interpolation to raw sample times; the
         // regression filter's reach when the predictions are to be filtered ([`Predicted::filter`]).
@@ -62,15 +62,11 @@ impl Predicted {
                 states: None,
             };
         }
-        let mut row: Vec<Vec<f64>> = active.iter().map(|a| vec![0.0; a.len()]).collect();
+        let mut row: Vec<Vec<f64>> = active.iter().map(|a| Vec::with_capacity(a.len())).collect();
         let states = p.states(lo, hi);
         for k in lo..hi {
-            let buf = rows.fill_grid(&states, k);
-            for (j, rj) in row.iter_mut().enumerate() {
-                for (v, &c) in rj.iter_mut().zip(&active[j]) {
-                    *v = buf[j * nc + c];
-                }
-            }
+            row.iter_mut().for_each(Vec::clear);
+            rows.append_active(&states, k, active, &mut row);
             for (set, out) in coefs.iter().zip(pred.iter_mut()) {
                 for (j, o) in out.iter_mut().enumerate() {
                     o[k - lo] = ls::dot(&row[j], &set[j]);

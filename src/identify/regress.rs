@@ -34,7 +34,6 @@ struct Chunk {
 impl Chunk {
     /// Unfiltered rows and the measured τ on the grid around the core `a..b`.
     fn new(p: &Prepared, rows: &mut Rows, active: &[Vec<usize>], (a, b): (usize, usize)) -> Chunk {
-        let nc = rows.layout.ncols();
         let reach = p.rfilter.as_zero_phase().reach();
         let (lo, hi) = (a.saturating_sub(reach), (b + reach).min(p.est.grid.n));
         let w = hi - lo;
@@ -56,10 +55,9 @@ impl Chunk {
                 let st = p.states(lo, hi);
                 let tau = p.grid_tau(lo, hi);
                 for k in lo..hi {
-                    let buf = rows.fill_grid(&st, k);
-                    for (j, o) in out.iter_mut().enumerate() {
-                        o.extend(active[j].iter().map(|&c| buf[j * nc + c]));
-                        o.push(tau[j][k - lo]);
+                    rows.append_active(&st, k, active, &mut out);
+                    for (o, t) in out.iter_mut().zip(&tau) {
+                        o.push(t[k - lo]);
                     }
                 }
             }

@@ -66,6 +66,50 @@ impl<'a> Rows<'a> {
     }
 
     fn fill_grid_from(&mut self, st: &States, k: usize, yb: Option<&[f64]>) -> &[f64] {
+        self.state_and_base(st, k, yb);
+        let (q, dq, ddq) = (
+            std::mem::take(&mut self.q),
+            std::mem::take(&mut self.dq),
+            std::mem::take(&mut self.ddq),
+        );
+        self.place(&q, &dq, &ddq);
+        (self.q, self.dq, self.ddq) = (q, dq, ddq);
+        &self.row
+    }
+
+    /// Appends to `out[j]` joint `j`'s `active[j]` columns ([`Layout::active`]) at grid sample
+    /// `k` of `st`: the values [`Rows::fill_grid`] puts there, written straight (no full row to
+    /// gather from) unless the layout has load-dependent columns, whose torque is summed over
+    /// the full row.
+    pub(super) fn append_active(
+        &mut self,
+        st: &States,
+        k: usize,
+        active: &[Vec<usize>],
+        out: &mut [Vec<f64>],
+    ) {
+        let (nb, nc) = (self.layout.nb, self.layout.ncols());
+        if self.layout.terms.iter().any(|t| t.effect.needs_load()) {
+            let buf = self.fill_grid(st, k);
+            for (j, o) in out.iter_mut().enumerate() {
+                o.extend(active[j].iter().map(|&c| buf[j * nc + c]));
+            }
+            return;
+        }
+        self.state_and_base(st, k, None);
+        let (terms, scales) = (&self.layout.terms, &self.layout.scales);
+        for (j, o) in out.iter_mut().enumerate() {
+            let (q, dq, ddq) = (self.q[j], self.dq[j], self.ddq[j]);
+            o.extend(active[j].iter().map(|&c| match c.checked_sub(nb) {
+                None => self.yb[j * nb + c],
+                Some(i) => terms[i].effect.column(q, dq, ddq, 0.0, &scales[j]),
+            }));
+        }
+    }
+
+    /// The state at grid sample `k` of `st` into `self.q`, `self.dq`, `self.ddq` and its base
+    /// regressor into `self.yb` (`yb` if given, else evaluated).
+    fn state_and_base(&mut self, st: &States, k: usize, yb: Option<&[f64]>) {
         let i = k - st.lo;
         for j in 0..self.layout.dof {
             (self.q[j], self.dq[j], self.ddq[j]) = (st.q[j][i], st.dq[j][i], st.ddq[j][i]);
@@ -79,9 +123,7 @@ impl<'a> Rows<'a> {
             Some(yb) => self.yb.copy_from_slice(yb),
             None => self.eval_batched(st, i, &q, &dq, &ddq),
         }
-        self.place(&q, &dq, &ddq);
         (self.q, self.dq, self.ddq) = (q, dq, ddq);
-        &self.row
     }
 
     /// The base regressor of state `i` of `st` (`q`, `dq`, `ddq`) into `self.yb`: from the
@@ -467,6 +509,52 @@ mod tests {
             RowTable::new(&p, &base, &other, Some(&g)).rows
         );
         assert_ne!(direct2.rows, direct.rows);
+    }
+
+    /// A joint's active columns written straight are the full row's, gathered, bit for bit —
+    /// with every effect candidate, and with a load-dependent column (which takes the full row).
+    #[test]
+    fn active_columns_written_straight_are_the_full_rows_gathered() {
+        let arm = crate::arms::resolve("puma560").unwrap();
+        let table = arm.dh_table().unwrap();
+        let mut spec = Spec::new(table.clone(), 3);
+        spec.duration = 4.0;
+        let log = Log::from(generate(&spec));
+        let base = BaseModel::for_arm(&arm);
+        let cfg = Config::default();
+        let p = Prepared::with_cutoff(log, &cfg, Some(6.0), Smoothing::default(), None).unwrap();
+        let first = make_layout(&base, Some(&table), std::slice::from_ref(&p), &cfg).0;
+        assert!(
+            first.terms.len() >= 2 * first.dof && first.load.iter().all(|&l| l == 0.0),
+            "{:?}",
+            first.terms
+        );
+        let mut loaded = first.clone();
+        loaded.terms.push(crate::effects::Term {
+            effect: Effect::LoadCoulomb,
+            joint: 2,
+        });
+        loaded.load = (0..loaded.ncols()).map(|c| 0.01 * c as f64).collect();
+        let st = p.states(0, 200);
+        for layout in [&first, &loaded] {
+            let (n, nc) = (layout.dof, layout.ncols());
+            let active: Vec<Vec<usize>> = (0..n).map(|j| layout.active(j)).collect();
+            let (mut straight, mut gathered) = (Rows::new(&base, layout), Rows::new(&base, layout));
+            for k in [0, 1, 2, 3, 4, 7, 150, 199] {
+                let mut got = vec![Vec::new(); n];
+                straight.append_active(&st, k, &active, &mut got);
+                let full = gathered.fill_grid(&st, k);
+                for j in 0..n {
+                    let want: Vec<f64> = active[j].iter().map(|&c| full[j * nc + c]).collect();
+                    assert_eq!(
+                        got[j].iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+                        want.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+                        "sample {k}, joint {j}"
+                    );
+                    assert!(want.iter().any(|&v| v != 0.0));
+                }
+            }
+        }
     }
 
     /// The lane-batched base regressor serves a row only for the state it was evaluated at:
