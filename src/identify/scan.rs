@@ -212,8 +212,10 @@ impl Scan<'_> {
         Ok(out)
     }
 
-    /// One cut-off: each regression ratio's problem, both predictions judged on it; the rows are
-    /// evaluated once for all of them when they fit in [`super::rows::ROW_TABLE_BYTES`].
+    /// One cut-off: each regression ratio's problem, both predictions judged on it — all ratios'
+    /// problems built in one pass over the rows and judged in one more (the rows are the same
+    /// for every ratio), or from a table of the rows when they fit in
+    /// [`super::rows::ROW_TABLE_BYTES`].
     fn cutoff(&self, fc: f64) -> Result<Vec<CutoffTrial>, IdentifyError> {
         let sm = |ratio| Smoothing {
             regression_ratio: ratio,
