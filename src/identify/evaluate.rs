@@ -174,11 +174,7 @@ pub fn raw_sums_sampled(
                 .par_iter()
                 .map(|&core| {
                     let mut rows = Rows::new(base, layout);
-                    // Only the blocks this chunk's samples can fall in (filter margins included).
-                    let (b0, b1) = (
-                        p.block_of(core.0.saturating_sub(1), nblocks),
-                        p.block_of(core.1, nblocks),
-                    );
+                    let (b0, b1) = core_blocks(p, core, nblocks);
                     let mut wanted = vec![false; sets.len()];
                     for (m, model) in models.iter().enumerate() {
                         let full = usize::from(model.x.is_some());
@@ -280,10 +276,7 @@ pub(super) fn heldout_per_filter(
             .par_iter()
             .map(|&core| {
                 let mut rows = Rows::new(base, layout);
-                let (b0, b1) = (
-                    p.block_of(core.0.saturating_sub(1), nblocks),
-                    p.block_of(core.1, nblocks),
-                );
+                let (b0, b1) = core_blocks(p, core, nblocks);
                 let wanted: Vec<bool> = (0..sets.len())
                     .map(|s| (b0..=b1).contains(&(s % nblocks)))
                     .collect();
@@ -318,6 +311,15 @@ pub(super) fn heldout_per_filter(
     (0..nv)
         .map(|v| (total[2 * v].heldout(0), total[2 * v + 1].heldout(0)))
         .collect()
+}
+
+/// The first and last block a core's raw samples can fall in (filter margins included): only
+/// those blocks' held-out parameters are predicted there.
+fn core_blocks(p: &Prepared, core: (usize, usize), nblocks: usize) -> (usize, usize) {
+    (
+        p.block_of(core.0.saturating_sub(1), nblocks),
+        p.block_of(core.1, nblocks),
+    )
 }
 
 /// Adds the residuals of one core's raw samples to `sums` (predictions `pc`): the samples'
