@@ -136,11 +136,7 @@ impl Predicted {
             out.push(t);
             let i = k - this.lo;
             for d in &st.dq[..n] {
-                out.push(if s > 0.0 {
-                    d[i] + s * (d[i + 1] - d[i])
-                } else {
-                    d[i]
-                });
+                out.push(interpolate(d, i, s));
             }
             out.extend_from_slice(tau);
             for &m in sets {
