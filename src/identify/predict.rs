@@ -47,12 +47,22 @@ impl Predicted {
             .iter()
             .map(|&u| if u { vec![vec![0.0; w]; n] } else { Vec::new() })
             .collect();
+        // Per joint, the coefficients of the sets asked for, in order.
+        let asked: Vec<usize> = (0..coefs.len()).filter(|&s| wanted[s]).collect();
+        let per_joint: Vec<Vec<&[f64]>> = (0..n)
+            .map(|j| asked.iter().map(|&s| coefs[s][j].as_slice()).collect())
+            .collect();
+        let mut dots = vec![0.0; asked.len()];
+        let mut predict = |pred: &mut [Vec<Vec<f64>>], j: usize, k: usize, row: &[f64]| {
+            ls::dots(row, &per_joint[j], &mut dots);
+            for (&s, &d) in asked.iter().zip(&dots) {
+                pred[s][j][k - lo] = d;
+            }
+        };
         if let Some(table) = p.rows.as_deref().filter(|t| t.fits(rows.layout)) {
             for k in lo..hi {
-                for (set, out) in coefs.iter().zip(pred.iter_mut()) {
-                    for (j, o) in out.iter_mut().enumerate() {
-                        o[k - lo] = ls::dot(table.row(j, k), &set[j]);
-                    }
+                for j in 0..n {
+                    predict(&mut pred, j, k, table.row(j, k));
                 }
             }
             return Predicted {
@@ -67,10 +77,8 @@ impl Predicted {
         for k in lo..hi {
             row.iter_mut().for_each(Vec::clear);
             rows.append_active(&states, k, active, &mut row);
-            for (set, out) in coefs.iter().zip(pred.iter_mut()) {
-                for (j, o) in out.iter_mut().enumerate() {
-                    o[k - lo] = ls::dot(&row[j], &set[j]);
-                }
+            for (j, row) in row.iter().enumerate() {
+                predict(&mut pred, j, k, row);
             }
         }
         Predicted {
