@@ -8,6 +8,7 @@
 //! columns, a fit with per-joint weights (stacking `wⱼ·Rⱼ`), or the error of any parameter vector
 //! on the rows of one accumulator are all computed from the factors alone.
 
+use crate::pack::Pack;
 use nalgebra::{DMatrix, DVector};
 
 /// Rows buffered before each QR update.
@@ -271,18 +272,20 @@ pub fn dots(a: &[f64], sets: &[&[f64]], out: &mut [f64]) {
 fn dot_group<const G: usize>(a: &[f64], b: [&[f64]; G]) -> [f64; G] {
     let len = a.len();
     let b = b.map(|v| &v[..len]);
-    let mut acc = [[0.0; 4]; G];
+    // One pack per set: its four partial sums in one register (LLVM, left to a plain
+    // `[[f64; 4]; G]`, vectorised across the sets instead, with a shuffle per product).
+    let mut acc = [Pack::splat(0.0); G];
+    let four = |v: &[f64]| Pack::new([v[0], v[1], v[2], v[3]]);
     for (c, x) in a.chunks_exact(4).enumerate() {
+        let x = four(x);
         for (acc, v) in acc.iter_mut().zip(&b) {
-            let y = &v[4 * c..4 * c + 4];
-            for i in 0..4 {
-                acc[i] += x[i] * y[i];
-            }
+            *acc = *acc + x * four(&v[4 * c..4 * c + 4]);
         }
     }
     let tail = len / 4 * 4;
     let mut out = [0.0; G];
     for ((o, acc), v) in out.iter_mut().zip(&acc).zip(&b) {
+        let acc = acc.to_array();
         let mut s = (acc[0] + acc[2]) + (acc[1] + acc[3]);
         for (x, y) in a[tail..].iter().zip(&v[tail..]) {
             s += x * y;
