@@ -143,9 +143,13 @@ pub fn raw_sums_sampled(
         let nblocks = blocks.map_or(1, |b| b[fi]);
         // Coefficient sets `[set][joint][active column]`: model m's full-data parameters (if
         // any) at `first_set[m]`, then its leave-one-block-out ones, block by block.
-        let (mut sets, mut first_set) = (Vec::new(), Vec::new());
+        let (mut sets, mut placed) = (Vec::new(), Vec::new());
         for m in models {
-            first_set.push(sets.len());
+            placed.push(ModelSets {
+                first: sets.len(),
+                full: m.x.is_some(),
+                heldout: m.loo.is_some(),
+            });
             let per_joint = |x: &[f64]| -> Vec<Vec<f64>> {
                 (0..n).map(|j| spread(&active[j], m.subset, x)).collect()
             };
@@ -165,7 +169,7 @@ pub fn raw_sums_sampled(
             .collect();
         // The sets whose samples are collected, in the pass of the chosen prediction.
         let sampled: Option<(usize, Vec<usize>)> = sampling.map(|a| {
-            let sets = a.models.iter().map(|&m| first_set[m]).collect();
+            let sets = a.models.iter().map(|&m| placed[m].first).collect();
             (a.stride, sets)
         });
         let cores = raw_cores(p);
@@ -176,12 +180,11 @@ pub fn raw_sums_sampled(
                     let mut rows = Rows::new(base, layout);
                     let (b0, b1) = core_blocks(p, core, nblocks);
                     let mut wanted = vec![false; sets.len()];
-                    for (m, model) in models.iter().enumerate() {
-                        let full = usize::from(model.x.is_some());
-                        wanted[first_set[m]] |= full == 1;
-                        if model.loo.is_some() {
+                    for model in &placed {
+                        wanted[model.first] |= model.full;
+                        if model.heldout {
                             for blk in b0..=b1 {
-                                wanted[first_set[m] + full + blk] = true;
+                                wanted[model.block_set(blk)] = true;
                             }
                         }
                     }
@@ -203,7 +206,7 @@ pub fn raw_sums_sampled(
                             pc.filter(p);
                         }
                         for (sums, _) in out.iter_mut().zip(&filtered).filter(|(_, &f)| f == pass) {
-                            add_core(sums, p, core, nblocks, models, &first_set, &pc);
+                            add_core(sums, p, core, nblocks, &placed, &pc);
                         }
                         if let Some((stride, sets)) = &sampled {
                             if pass == p.smoothing.filtered_prediction {
@@ -246,12 +249,6 @@ pub(super) fn heldout_per_filter(
     let n = layout.dof;
     let nv = variants.len();
     let active: Vec<Vec<usize>> = (0..n).map(|j| layout.active(j)).collect();
-    // What `add_core` reads of the model: leave-one-block-out sets only.
-    let model = [Judged {
-        subset: &[],
-        x: None,
-        loo: Some(&[]),
-    }];
     // Per variant, states then filtered.
     let mut total = vec![RawSums::zero(1, n); 2 * nv];
     let mut offset = 0;
@@ -285,18 +282,15 @@ pub(super) fn heldout_per_filter(
                 let mut out = vec![RawSums::zero(1, n); 2 * nv];
                 for v in 0..nv {
                     let pv = &variants[v][fi];
-                    let first = [v * nblocks];
-                    add_core(&mut out[2 * v], pv, core, nblocks, &model, &first, &states);
+                    // The model's leave-one-block-out sets with this variant's filter.
+                    let model = [ModelSets {
+                        first: v * nblocks,
+                        full: false,
+                        heldout: true,
+                    }];
+                    add_core(&mut out[2 * v], pv, core, nblocks, &model, &states);
                     let filtered = states.filtered_copy(pv, v * nblocks..(v + 1) * nblocks);
-                    add_core(
-                        &mut out[2 * v + 1],
-                        pv,
-                        core,
-                        nblocks,
-                        &model,
-                        &first,
-                        &filtered,
-                    );
+                    add_core(&mut out[2 * v + 1], pv, core, nblocks, &model, &filtered);
                 }
                 out
             })
@@ -330,8 +324,7 @@ fn add_core(
     p: &Prepared,
     core: (usize, usize),
     nblocks: usize,
-    models: &[Judged],
-    first_set: &[usize],
+    models: &[ModelSets],
     pc: &Predicted,
 ) {
     let n = sums.tss.len();
@@ -363,25 +356,34 @@ fn add_core(
         }
     };
     for (m, model) in models.iter().enumerate() {
-        let full = usize::from(model.x.is_some());
         for j in 0..n {
-            if full == 1 {
-                sse(&mut sums.sse[m][j], first_set[m], j, 0, pos.len());
+            if model.full {
+                sse(&mut sums.sse[m][j], model.first, j, 0, pos.len());
             }
-            if model.loo.is_some() {
+            if model.heldout {
                 let mut from = 0;
                 for &(to, blk) in &runs {
-                    sse(
-                        &mut sums.heldout[m][j],
-                        first_set[m] + full + blk,
-                        j,
-                        from,
-                        to,
-                    );
+                    sse(&mut sums.heldout[m][j], model.block_set(blk), j, from, to);
                     from = to;
                 }
             }
         }
+    }
+}
+
+/// Where a judged model's coefficient sets are among those predicted: its full-data set at
+/// `first` (if `full`), then its leave-one-block-out sets block by block (if `heldout`).
+#[derive(Debug, Clone, Copy)]
+struct ModelSets {
+    first: usize,
+    full: bool,
+    heldout: bool,
+}
+
+impl ModelSets {
+    /// The set of the fit without block `blk`.
+    fn block_set(&self, blk: usize) -> usize {
+        self.first + usize::from(self.full) + blk
     }
 }
 

@@ -258,20 +258,26 @@ impl Scan<'_> {
                 continue;
             };
             // Only the fits are kept (each problem is dropped here).
-            fitted.push((ratio, preps, problem.raw_blocks().to_vec(), subset, loo));
+            fitted.push(RatioFit {
+                ratio,
+                files: preps,
+                blocks: problem.raw_blocks().to_vec(),
+                subset,
+                loo,
+            });
         }
-        let Some((_, _, first, ..)) = fitted.first() else {
+        let Some(first) = fitted.first().map(|f| &f.blocks) else {
             self.cfg.progress.step();
             return Ok(Vec::new());
         };
         // The same files and blocks (the kept samples do not depend on the ratio).
-        debug_assert!(fitted.iter().all(|f| f.2 == *first));
-        let variants: Vec<&[Prepared]> = fitted.iter().map(|f| f.1.as_slice()).collect();
-        let subsets: Vec<&[usize]> = fitted.iter().map(|f| f.3.as_slice()).collect();
-        let loo: Vec<&[Vec<f64>]> = fitted.iter().map(|f| f.4.as_slice()).collect();
+        debug_assert!(fitted.iter().all(|f| f.blocks == *first));
+        let variants: Vec<&[Prepared]> = fitted.iter().map(|f| f.files.as_slice()).collect();
+        let subsets: Vec<&[usize]> = fitted.iter().map(|f| f.subset.as_slice()).collect();
+        let loo: Vec<&[Vec<f64>]> = fitted.iter().map(|f| f.loo.as_slice()).collect();
         let errors = heldout_per_filter(self.base, self.layout, &variants, first, &subsets, &loo);
         let mut out = Vec::new();
-        for ((ratio, ..), (states, filtered)) in fitted.iter().zip(errors) {
+        for (RatioFit { ratio, .. }, (states, filtered)) in fitted.iter().zip(errors) {
             for (mode, e) in [(false, states), (true, filtered)] {
                 if self.modes.contains(&mode) {
                     out.push(CutoffTrial {
@@ -288,6 +294,18 @@ impl Scan<'_> {
         self.cfg.progress.step();
         Ok(out)
     }
+}
+
+/// One regression ratio's fit at a scanned cut-off: what judging it needs.
+struct RatioFit {
+    ratio: f64,
+    /// The files prepared with this ratio's regression filter.
+    files: Vec<Prepared>,
+    /// Time blocks per file.
+    blocks: Vec<usize>,
+    /// The columns fitted and the fit without each block, block by block.
+    subset: Vec<usize>,
+    loo: Vec<Vec<f64>>,
 }
 
 /// Lowest derivative cut-off the scan tries (Hz), unless the spectrum proposes less: robot
