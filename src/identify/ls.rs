@@ -8,7 +8,7 @@
 //! columns, a fit with per-joint weights (stacking `wⱼ·Rⱼ`), or the error of any parameter vector
 //! on the rows of one accumulator are all computed from the factors alone.
 
-use crate::pack::Pack;
+use super::dot::dot;
 use nalgebra::{DMatrix, DVector};
 
 /// Rows buffered before each QR update.
@@ -229,70 +229,6 @@ fn reflect(tau: f64, v: &[f64], r_lc: &mut f64, col: &mut [f64]) {
     for (y, &x) in col.iter_mut().zip(v.iter()) {
         *y -= s * x;
     }
-}
-
-/// Dot product with four partial sums (vectorises without reassociation licence).
-pub fn dot(a: &[f64], b: &[f64]) -> f64 {
-    let mut acc = [0.0; 4];
-    let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
-    let (ra, rb) = (ca.remainder(), cb.remainder());
-    for (x, y) in ca.zip(cb) {
-        for i in 0..4 {
-            acc[i] += x[i] * y[i];
-        }
-    }
-    let mut s = (acc[0] + acc[2]) + (acc[1] + acc[3]);
-    for (x, y) in ra.iter().zip(rb) {
-        s += x * y;
-    }
-    s
-}
-
-/// [`dot`] of `a` with each of `sets` (`out[s] = dot(a, sets[s])`, the same sums bit for bit),
-/// four sets at a time: `a` is read once per four sets and their four sums' chains overlap (a
-/// model's prediction of one joint is one such product per coefficient set, and judging asks for
-/// a dozen sets per sample). Every set must be as long as `a`.
-pub fn dots(a: &[f64], sets: &[&[f64]], out: &mut [f64]) {
-    let mut s = 0;
-    while s + 4 <= sets.len() {
-        let r = dot_group(a, [sets[s], sets[s + 1], sets[s + 2], sets[s + 3]]);
-        out[s..s + 4].copy_from_slice(&r);
-        s += 4;
-    }
-    match sets.len() - s {
-        3 => out[s..s + 3].copy_from_slice(&dot_group(a, [sets[s], sets[s + 1], sets[s + 2]])),
-        2 => out[s..s + 2].copy_from_slice(&dot_group(a, [sets[s], sets[s + 1]])),
-        1 => out[s] = dot_group(a, [sets[s]])[0],
-        _ => {}
-    }
-}
-
-/// [`dot`] of `a` with `G` vectors at once (each summed exactly as [`dot`] sums it).
-#[inline(always)]
-fn dot_group<const G: usize>(a: &[f64], b: [&[f64]; G]) -> [f64; G] {
-    let len = a.len();
-    let b = b.map(|v| &v[..len]);
-    // One pack per set: its four partial sums in one register (LLVM, left to a plain
-    // `[[f64; 4]; G]`, vectorised across the sets instead, with a shuffle per product).
-    let mut acc = [Pack::splat(0.0); G];
-    let four = |v: &[f64]| Pack::new([v[0], v[1], v[2], v[3]]);
-    for (c, x) in a.chunks_exact(4).enumerate() {
-        let x = four(x);
-        for (acc, v) in acc.iter_mut().zip(&b) {
-            *acc = *acc + x * four(&v[4 * c..4 * c + 4]);
-        }
-    }
-    let tail = len / 4 * 4;
-    let mut out = [0.0; G];
-    for ((o, acc), v) in out.iter_mut().zip(&acc).zip(&b) {
-        let acc = acc.to_array();
-        let mut s = (acc[0] + acc[2]) + (acc[1] + acc[3]);
-        for (x, y) in a[tail..].iter().zip(&v[tail..]) {
-            s += x * y;
-        }
-        *o = s;
-    }
-    out
 }
 
 /// `R` of the QR of `m` (rows ≥ cols), as a square `cols × cols` upper-triangular matrix.
@@ -688,32 +624,6 @@ mod tests {
             .wrapping_mul(6364136223846793005)
             .wrapping_add(1442695040888963407);
         ((*seed >> 11) as f64 / (1u64 << 53) as f64) - 0.5
-    }
-
-    #[test]
-    fn dots_of_many_sets_are_each_sets_dot_bit_for_bit() {
-        // Lengths around the four-wide chunks and set counts around the groups of four; the
-        // oracle is `dot` itself (its sums' order is what every prediction has always used).
-        let mut seed = 5u64;
-        for len in [0, 1, 3, 4, 5, 7, 8, 13, 31, 40] {
-            for nsets in 0..10 {
-                let a: Vec<f64> = (0..len).map(|_| lcg(&mut seed) * 1e3).collect();
-                let sets: Vec<Vec<f64>> = (0..nsets)
-                    .map(|_| (0..len).map(|_| lcg(&mut seed) / 7.0).collect())
-                    .collect();
-                let refs: Vec<&[f64]> = sets.iter().map(Vec::as_slice).collect();
-                let mut out = vec![f64::NAN; nsets + 1];
-                dots(&a, &refs, &mut out);
-                for (s, set) in sets.iter().enumerate() {
-                    assert_eq!(
-                        out[s].to_bits(),
-                        dot(&a, set).to_bits(),
-                        "len {len} set {s}/{nsets}"
-                    );
-                }
-                assert!(out[nsets].is_nan(), "wrote past the sets");
-            }
-        }
     }
 
     #[test]

@@ -50,6 +50,7 @@
 //!    residual autocorrelation that filtering creates), reported also as %σ = 100·σ/|θ|.
 
 pub mod base;
+mod dot;
 mod evaluate;
 pub mod identifiability;
 mod layout;

@@ -4,7 +4,7 @@
 
 use std::sync::Arc;
 
-use super::ls;
+use super::dot;
 use super::prepare::{raw_in_core, Prepared};
 use super::rows::Rows;
 use super::IdentifyError;
@@ -54,7 +54,7 @@ impl Predicted {
             .collect();
         let mut dots = vec![0.0; asked.len()];
         let mut predict = |pred: &mut [Vec<Vec<f64>>], j: usize, k: usize, row: &[f64]| {
-            ls::dots(row, &per_joint[j], &mut dots);
+            dot::dots(row, &per_joint[j], &mut dots);
             for (&s, &d) in asked.iter().zip(&dots) {
                 pred[s][j][k - lo] = d;
             }

@@ -8,8 +8,8 @@ use std::sync::{Arc, Mutex};
 use rayon::prelude::*;
 
 use super::base::{self, BaseModel};
+use super::dot;
 use super::layout::Layout;
-use super::ls;
 use super::prepare::{cores, Prepared};
 use crate::derivative::States;
 use crate::pack::LANES;
@@ -185,7 +185,7 @@ impl<'a> Rows<'a> {
             .filter(|(_, t)| t.effect.needs_load())
         {
             let j = t.joint;
-            let tau = ls::dot(&out[j * nc..(j + 1) * nc], load);
+            let tau = dot::dot(&out[j * nc..(j + 1) * nc], load);
             out[j * nc + nb + i] =
                 t.effect
                     .column(q[j], dq[j], ddq[j], tau, &self.layout.scales[j]);
