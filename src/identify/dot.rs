@@ -9,6 +9,7 @@ use crate::pack::Pack;
 /// sum `i mod 4`, the four combined as `(s0 + s2) + (s1 + s3)`, the last `len mod 4` elements
 /// added after them in order): a fixed order, so vectorised without reassociation licence.
 pub fn dot(a: &[f64], b: &[f64]) -> f64 {
+    debug_assert_eq!(a.len(), b.len());
     dot_group(a, [b])[0]
 }
 
@@ -17,6 +18,7 @@ pub fn dot(a: &[f64], b: &[f64]) -> f64 {
 /// model's prediction of one joint is one such product per coefficient set, and judging asks for
 /// a dozen sets per sample). Every set must be as long as `a`.
 pub fn dots(a: &[f64], sets: &[&[f64]], out: &mut [f64]) {
+    debug_assert!(sets.iter().all(|s| s.len() == a.len()) && out.len() >= sets.len());
     let mut s = 0;
     while s + 4 <= sets.len() {
         let r = dot_group(a, [sets[s], sets[s + 1], sets[s + 2], sets[s + 3]]);
