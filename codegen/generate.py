@@ -128,11 +128,21 @@ def emit_kernel(arm: DhTable, sym: Symbols, theta: ca.SX, k: Kernel) -> Emitted:
 
     body = emit(f, name, len(k.outputs))
     trig_joints = sorted({nz // 2 for inp, nz in body.used if k.inputs[inp] == "trig"})
-    pre = []
-    for i in trig_joints:
+
+    def arg(i: int) -> str:
         off = arm.joints[i].theta
-        arg = f"q[{i}]" if off == 0.0 else f"q[{i}] + {off!r}"
-        pre.append(f"let (s{i + 1}, c{i + 1}) = crate::trig::sin_cos({arg});")
+        return f"q[{i}]" if off == 0.0 else f"q[{i}] + {off!r}"
+
+    # Four joints per `sin_cos4` (one evaluation of the four-lane polynomial, the same values as
+    # four `sin_cos` calls), the rest one by one.
+    pre = []
+    whole = len(trig_joints) // 4 * 4
+    for g in range(0, whole, 4):
+        js = trig_joints[g : g + 4]
+        pairs = ", ".join(f"(s{i + 1}, c{i + 1})" for i in js)
+        pre.append(f"let [{pairs}] = crate::trig::sin_cos4({', '.join(arg(i) for i in js)});")
+    for i in trig_joints[whole:]:
+        pre.append(f"let (s{i + 1}, c{i + 1}) = crate::trig::sin_cos({arg(i)});")
     sig = ", ".join(k.args + [f"out: &mut [f64; {k.out_len}]"])
     lines = [f"#[inline]\npub fn {k.name}({sig}) {{"]
     lines += [f"    {ln}" for ln in pre + body.lines]

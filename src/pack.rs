@@ -202,6 +202,12 @@ pub trait Lane:
     fn splat(x: f64) -> Self;
     /// `(sin x, cos x)` lane by lane, bit for bit [`crate::trig::sin_cos`] of each lane.
     fn sin_cos(self) -> (Self, Self);
+    /// [`Lane::sin_cos`] of four values (the lane form of [`crate::trig::sin_cos4`]: the lanes
+    /// are full already, so four calls).
+    #[inline(always)]
+    fn sin_cos4(a: Self, b: Self, c: Self, d: Self) -> [(Self, Self); 4] {
+        [a.sin_cos(), b.sin_cos(), c.sin_cos(), d.sin_cos()]
+    }
     /// `*dst = 0` in every lane (see [`store_zero`]): a plain store unless the type says
     /// otherwise.
     #[inline(always)]

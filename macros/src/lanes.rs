@@ -38,6 +38,11 @@ impl VisitMut for ToLanes {
             {
                 *expr = parse_quote!(<L as crate::pack::Lane>::sin_cos);
             }
+            Expr::Path(ExprPath { path, .. })
+                if quote!(#path).to_string().replace(' ', "") == "crate::trig::sin_cos4" =>
+            {
+                *expr = parse_quote!(<L as crate::pack::Lane>::sin_cos4);
+            }
             _ => visit_mut::visit_expr_mut(self, expr),
         }
     }
