@@ -1,5 +1,5 @@
-//! Trigonometry for the generated kernels: [`sin_cos_n`] (all joints of a kernel at once) and
-//! [`sin_cos`].
+//! Trigonometry for the generated kernels: [`sin_cos4`] (four joints at once: what the kernels
+//! call, then [`sin_cos`] for the rest), [`sin_cos_n`] (any number at once) and [`sin_cos`].
 //!
 //! Every generated kernel starts with the sines and cosines of its revolute joints, and
 //! everything else depends on them, so their *latency* is paid once per call: the kernel bodies
