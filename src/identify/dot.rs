@@ -62,10 +62,11 @@ fn dot_group<const G: usize>(a: &[f64], b: [&[f64]; G]) -> [f64; G] {
 }
 
 #[cfg(test)]
-mod tests {
+pub(in crate::identify) mod tests {
     use super::*;
 
-    fn lcg(seed: &mut u64) -> f64 {
+    /// Uniform in [−0.5, 0.5) from a 64-bit LCG (the identification's unit tests' numbers).
+    pub(in crate::identify) fn lcg(seed: &mut u64) -> f64 {
         *seed = seed
             .wrapping_mul(6364136223846793005)
             .wrapping_add(1442695040888963407);

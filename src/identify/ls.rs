@@ -617,14 +617,8 @@ pub fn t_quantile(p: f64, nu: f64) -> f64 {
 
 #[cfg(test)]
 mod tests {
+    use super::super::dot::tests::lcg;
     use super::*;
-
-    fn lcg(seed: &mut u64) -> f64 {
-        *seed = seed
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((*seed >> 11) as f64 / (1u64 << 53) as f64) - 0.5
-    }
 
     #[test]
     fn fits_from_a_kept_prefix_are_bit_identical_to_whole_fits() {
