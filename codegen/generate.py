@@ -134,15 +134,20 @@ def emit_kernel(arm: DhTable, sym: Symbols, theta: ca.SX, k: Kernel) -> Emitted:
         return f"q[{i}]" if off == 0.0 else f"q[{i}] + {off!r}"
 
     # Four joints per `sin_cos4` (one evaluation of the four-lane polynomial, the same values as
-    # four `sin_cos` calls), the rest one by one.
+    # one `sin_cos` call per joint); a kernel of two or three joints in all through `sin_cos2` or
+    # `sin_cos3` (planar2 and SCARA kernels 1.1-1.2x faster), but the joints left after a group
+    # of four one by one (a `sin_cos2` there made the Panda gravity 1.16x slower, in 5 rounds).
     pre = []
-    whole = len(trig_joints) // 4 * 4
-    for g in range(0, whole, 4):
-        js = trig_joints[g : g + 4]
+    groups = [trig_joints[g : g + 4] for g in range(0, len(trig_joints), 4)]
+    if len(groups) > 1 and len(groups[-1]) < 4:
+        groups = groups[:-1] + [[i] for i in groups[-1]]
+    for js in groups:
+        if len(js) == 1:
+            pre.append(f"let (s{js[0] + 1}, c{js[0] + 1}) = crate::trig::sin_cos({arg(js[0])});")
+            continue
         pairs = ", ".join(f"(s{i + 1}, c{i + 1})" for i in js)
-        pre.append(f"let [{pairs}] = crate::trig::sin_cos4({', '.join(arg(i) for i in js)});")
-    for i in trig_joints[whole:]:
-        pre.append(f"let (s{i + 1}, c{i + 1}) = crate::trig::sin_cos({arg(i)});")
+        args = ", ".join(arg(i) for i in js)
+        pre.append(f"let [{pairs}] = crate::trig::sin_cos{len(js)}({args});")
     sig = ", ".join(k.args + [f"out: &mut [f64; {k.out_len}]"])
     lines = [f"#[inline]\npub fn {k.name}({sig}) {{"]
     lines += [f"    {ln}" for ln in pre + body.lines]

@@ -208,6 +208,16 @@ pub trait Lane:
     fn sin_cos4(a: Self, b: Self, c: Self, d: Self) -> [(Self, Self); 4] {
         [a.sin_cos(), b.sin_cos(), c.sin_cos(), d.sin_cos()]
     }
+    /// [`Lane::sin_cos`] of three values (the lane form of [`crate::trig::sin_cos3`]).
+    #[inline(always)]
+    fn sin_cos3(a: Self, b: Self, c: Self) -> [(Self, Self); 3] {
+        [a.sin_cos(), b.sin_cos(), c.sin_cos()]
+    }
+    /// [`Lane::sin_cos`] of two values (the lane form of [`crate::trig::sin_cos2`]).
+    #[inline(always)]
+    fn sin_cos2(a: Self, b: Self) -> [(Self, Self); 2] {
+        [a.sin_cos(), b.sin_cos()]
+    }
     /// `*dst = 0` in every lane (see [`store_zero`]): a plain store unless the type says
     /// otherwise.
     #[inline(always)]

@@ -1,5 +1,6 @@
 //! Trigonometry for the generated kernels: [`sin_cos4`] (four joints at once: what the kernels
-//! call, then [`sin_cos`] for the rest), [`sin_cos_n`] (any number at once) and [`sin_cos`].
+//! call, then [`sin_cos3`], [`sin_cos2`] or [`sin_cos`] for the rest), [`sin_cos_n`] (any number
+//! at once) and [`sin_cos`].
 //!
 //! Every generated kernel starts with the sines and cosines of its revolute joints, and
 //! everything else depends on them, so their *latency* is paid once per call: the kernel bodies
@@ -108,6 +109,21 @@ pub fn sin_cos4(a: f64, b: f64, c: f64, d: f64) -> [(f64, f64); 4] {
         (e.map(|p| p.0), e.map(|p| p.1))
     });
     [(s[0], co[0]), (s[1], co[1]), (s[2], co[2]), (s[3], co[3])]
+}
+
+/// [`sin_cos`] of three values from one evaluation of the four-lane polynomial ([`sin_cos4`]
+/// with a zero in the spare lane, which changes no other lane).
+#[inline(always)]
+pub fn sin_cos3(a: f64, b: f64, c: f64) -> [(f64, f64); 3] {
+    let [x, y, z, _] = sin_cos4(a, b, c, 0.0);
+    [x, y, z]
+}
+
+/// [`sin_cos`] of two values from one evaluation of the four-lane polynomial (see [`sin_cos3`]).
+#[inline(always)]
+pub fn sin_cos2(a: f64, b: f64) -> [(f64, f64); 2] {
+    let [x, y, _, _] = sin_cos4(a, b, 0.0, 0.0);
+    [x, y]
 }
 
 #[cold]
@@ -635,7 +651,7 @@ mod tests {
     }
 
     #[test]
-    fn sin_cos4_is_four_sin_cos_calls_bit_for_bit() {
+    fn sin_cos4_3_2_are_sin_cos_calls_bit_for_bit() {
         // Every position holds, in turn, an ordinary angle, one the fast path reduces with
         // cancellation (fl(π): the exact path), one beyond the fast path, a NaN, a signed zero and
         // a subnormal: whatever the others hold, each value is `sin_cos`'s.
@@ -656,8 +672,12 @@ mod tests {
                 for &c in &xs {
                     for &d in &xs {
                         let got = sin_cos4(a, b, c, d);
-                        for (x, (s, co)) in [a, b, c, d].into_iter().zip(got) {
-                            let (ws, wc) = sin_cos(x);
+                        let fewer = sin_cos3(a, b, c).into_iter().chain(sin_cos2(a, b));
+                        let want = [a, b, c, d, a, b, c, a, b].map(sin_cos);
+                        for (x, ((s, co), (ws, wc))) in [a, b, c, d, a, b, c, a, b]
+                            .into_iter()
+                            .zip(got.into_iter().chain(fewer).zip(want))
+                        {
                             assert!(same(s, ws) && same(co, wc), "{x} in {a} {b} {c} {d}");
                         }
                     }

@@ -1,6 +1,6 @@
 //! The lane-batched copy of a generated kernel (see `dynid::pack`): the same body, generic over
 //! the lane type `L: crate::pack::Lane`, with `f64` replaced by `L`, every float literal `c` by
-//! `L::splat(c)` and `crate::trig::sin_cos` by `L::sin_cos`. The function becomes
+//! `L::splat(c)` and `crate::trig::sin_cos{,2,3,4}` by the `L` methods of those names. The function becomes
 //! `<name>_lanes::<L>`, always inlined (into the `Model` methods that pick `L`, and into the
 //! AVX-512 wrappers, which must compile it with their target features).
 
@@ -9,6 +9,14 @@ use syn::visit_mut::{self, VisitMut};
 use syn::{parse_quote, Expr, ExprLit, ExprPath, ItemFn, Lit, Type};
 
 struct ToLanes;
+
+/// The trigonometry the kernels call, each mapped to the `crate::pack::Lane` method of its name.
+const TRIG: [&str; 4] = [
+    "crate::trig::sin_cos",
+    "crate::trig::sin_cos2",
+    "crate::trig::sin_cos3",
+    "crate::trig::sin_cos4",
+];
 
 impl VisitMut for ToLanes {
     fn visit_type_mut(&mut self, ty: &mut Type) {
@@ -34,14 +42,10 @@ impl VisitMut for ToLanes {
                 *expr = parse_quote!(<L as crate::pack::Lane>::splat(#f));
             }
             Expr::Path(ExprPath { path, .. })
-                if quote!(#path).to_string().replace(' ', "") == "crate::trig::sin_cos" =>
+                if TRIG.contains(&quote!(#path).to_string().replace(' ', "").as_str()) =>
             {
-                *expr = parse_quote!(<L as crate::pack::Lane>::sin_cos);
-            }
-            Expr::Path(ExprPath { path, .. })
-                if quote!(#path).to_string().replace(' ', "") == "crate::trig::sin_cos4" =>
-            {
-                *expr = parse_quote!(<L as crate::pack::Lane>::sin_cos4);
+                let name = path.segments.last().expect("a path").ident.clone();
+                *expr = parse_quote!(<L as crate::pack::Lane>::#name);
             }
             _ => visit_mut::visit_expr_mut(self, expr),
         }
