@@ -145,7 +145,8 @@ fn sin_cos_exact_one(x: f64) -> (f64, f64) {
     (s[0], c[0])
 }
 
-/// `(sin x[i], cos x[i])` for all `i` at once: what a kernel needs for its revolute joints.
+/// `(sin x[i], cos x[i])` for all `i` at once (the kernels call [`sin_cos4`], whose values are
+/// [`sin_cos`]'s whatever the other lanes hold; here one element off the fast path sends all).
 ///
 /// The joints are evaluated in groups of [`LANES`] that the compiler vectorises (SSE2: 2 per
 /// instruction, AVX2: 4). If any `|x[i]|` exceeds [`FAST_PATH_MAX`] or is NaN, every element goes

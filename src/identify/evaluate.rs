@@ -142,7 +142,7 @@ pub fn raw_sums_sampled(
     for (fi, p) in files.iter().enumerate() {
         let nblocks = blocks.map_or(1, |b| b[fi]);
         // Coefficient sets `[set][joint][active column]`: model m's full-data parameters (if
-        // any) at `first_set[m]`, then its leave-one-block-out ones, block by block.
+        // any) at `placed[m].first`, then its leave-one-block-out ones, block by block.
         let (mut sets, mut placed) = (Vec::new(), Vec::new());
         for m in models {
             placed.push(ModelSets {
