@@ -225,7 +225,7 @@ fn lanes(c: &mut Criterion) {
         let mut i = 0usize;
         b.iter(|| {
             let [q, dq, ddq] = black_box(&packed[i % packed.len()]);
-            puma560::base_regressor_lanes(q, dq, ddq, &mut out);
+            puma560::base_regressor_lanes::<_, true>(q, dq, ddq, &mut out);
             i = i.wrapping_add(1);
             black_box(&mut out);
         })
@@ -250,7 +250,7 @@ fn lanes(c: &mut Criterion) {
         let mut i = 0usize;
         b.iter(|| {
             let [q, dq, ddq] = black_box(&packed[i % packed.len()]);
-            puma560::inverse_dynamics_lanes(q, dq, ddq, &theta_packed, &mut out);
+            puma560::inverse_dynamics_lanes::<_, true>(q, dq, ddq, &theta_packed, &mut out);
             i = i.wrapping_add(1);
             black_box(&mut out);
         })

@@ -96,6 +96,14 @@ pub struct KernelTiming {
     /// on the same pool, ns per *sample* (median). Not in `--json`, like `lanes_ns`.
     #[serde(skip)]
     pub lanes8_ns: f64,
+    /// `lanes_ns` of the form that leaves the constant-zero outputs to the buffer
+    /// (`call_lanes_skip_zeros`). Not in `--json`.
+    #[serde(skip)]
+    pub lanes_skip_ns: f64,
+    /// `lanes8_ns` of the form that leaves the constant-zero outputs to the buffer
+    /// (`call_lanes8_skip_zeros`). Not in `--json`.
+    #[serde(skip)]
+    pub lanes8_skip_ns: f64,
 }
 
 /// The streaming identification run.
@@ -138,6 +146,10 @@ pub enum BenchError {
     #[error("arm `{0}` is not built in")]
     MissingArm(&'static str),
 }
+
+/// What the skip-zeros checks fill the output with before a call: a NaN no kernel computes
+/// (its payload is not the default NaN's).
+const UNWRITTEN: f64 = f64::from_bits(0x7ff8_dead_beef_0001);
 
 /// The random input pool of the Pinocchio harness: `POOL` samples of `(q, q̇, q̈)`.
 #[derive(Debug, Clone)]
@@ -230,10 +242,22 @@ struct TimeGenerated<'a> {
     settings: &'a Settings,
 }
 
-impl crate::model::KernelVisitor for TimeGenerated<'_> {
-    type Output = (f64, f64, f64);
+/// A lane form's call through [`crate::model::KernelCall`] (`model, q, q̇, q̈, θ, out`).
+type LaneCall<T> = fn(&dyn Model, &[T], &[T], &[T], &[T], &mut [T]);
 
-    fn visit<K: crate::model::KernelCall>(self) -> (f64, f64, f64) {
+/// [`TimeGenerated`]'s times: ns per call (`single`), else ns per sample.
+struct GeneratedTimes {
+    single: f64,
+    lanes: f64,
+    lanes8: f64,
+    lanes_skip: f64,
+    lanes8_skip: f64,
+}
+
+impl crate::model::KernelVisitor for TimeGenerated<'_> {
+    type Output = GeneratedTimes;
+
+    fn visit<K: crate::model::KernelCall>(self) -> GeneratedTimes {
         let case = self.case;
         let len = case.out_len(K::KERNEL);
         // The arm through `black_box`: its calls stay calls through the trait.
@@ -243,21 +267,36 @@ impl crate::model::KernelVisitor for TimeGenerated<'_> {
             K::call(arm, pool.q(i), pool.dq(i), pool.ddq(i), theta, &mut buf);
             black_box(&mut buf);
         });
+        // Each lane form into a buffer zeroed once (as the skip-zeros forms require).
         let mut packs = vec![Pack::default(); len];
         let theta = &case.theta_packed[..];
-        let lanes = time_per_call(self.settings, |c| {
-            let [q, dq, ddq] = case.packs(c);
-            K::call_lanes(arm, q, dq, ddq, theta, &mut packs);
-            black_box(&mut packs);
-        });
+        let mut time_lanes = |call: LaneCall<Pack>| {
+            time_per_call(self.settings, |c| {
+                let [q, dq, ddq] = case.packs(c);
+                call(arm, q, dq, ddq, theta, &mut packs);
+                black_box(&mut packs);
+            }) / LANES as f64
+        };
+        let lanes = time_lanes(K::call_lanes);
+        let lanes_skip = time_lanes(K::call_lanes_skip_zeros);
         let mut packs8 = vec![Pack8::default(); len];
         let theta = &case.theta_packed8[..];
-        let lanes8 = time_per_call(self.settings, |c| {
-            let [q, dq, ddq] = case.packs8(c);
-            K::call_lanes8(arm, q, dq, ddq, theta, &mut packs8);
-            black_box(&mut packs8);
-        });
-        (single, lanes / LANES as f64, lanes8 / WIDE_LANES as f64)
+        let mut time_lanes8 = |call: LaneCall<Pack8>| {
+            time_per_call(self.settings, |c| {
+                let [q, dq, ddq] = case.packs8(c);
+                call(arm, q, dq, ddq, theta, &mut packs8);
+                black_box(&mut packs8);
+            }) / WIDE_LANES as f64
+        };
+        let lanes8 = time_lanes8(K::call_lanes8);
+        let lanes8_skip = time_lanes8(K::call_lanes8_skip_zeros);
+        GeneratedTimes {
+            single,
+            lanes,
+            lanes8,
+            lanes_skip,
+            lanes8_skip,
+        }
     }
 }
 
@@ -544,6 +583,73 @@ impl Case {
         })
     }
 
+    /// True when every lane of `call_lanes_skip_zeros` into a buffer of NaNs is bit for bit
+    /// [`Case::call_generated`] on its sample, except for outputs left as they were where the
+    /// scalar kernel gives +0 (over the first few packs).
+    pub fn lanes_skip_zeros_match(&self, kernel: Kernel) -> bool {
+        let mut packed = vec![Pack::default(); self.out_len(kernel)];
+        self.every_lane_matches_skipping_zeros(kernel, LANES, |c, l, got| {
+            if l == 0 {
+                packed.fill(Pack::splat(UNWRITTEN));
+                let [q, dq, ddq] = black_box(self.packs(c));
+                kernel.call_lanes_skip_zeros(
+                    self.arm,
+                    q,
+                    dq,
+                    ddq,
+                    &self.theta_packed[..],
+                    &mut packed,
+                );
+            }
+            crate::pack::lane(&packed, l, got);
+        })
+    }
+
+    /// [`Case::lanes_skip_zeros_match`] of the eight-lane form.
+    pub fn lanes8_skip_zeros_match(&self, kernel: Kernel) -> bool {
+        let mut packed = vec![Pack8::default(); self.out_len(kernel)];
+        self.every_lane_matches_skipping_zeros(kernel, WIDE_LANES, |c, l, got| {
+            if l == 0 {
+                packed.fill(Pack8::splat(UNWRITTEN));
+                let [q, dq, ddq] = black_box(self.packs8(c));
+                kernel.call_lanes8_skip_zeros(
+                    self.arm,
+                    q,
+                    dq,
+                    ddq,
+                    &self.theta_packed8[..],
+                    &mut packed,
+                );
+            }
+            for (g, p) in got.iter_mut().zip(&packed) {
+                *g = p.to_array()[l];
+            }
+        })
+    }
+
+    /// [`Case::every_lane_matches`], where an output may also be [`UNWRITTEN`] if the scalar
+    /// kernel's is +0.
+    fn every_lane_matches_skipping_zeros(
+        &self,
+        kernel: Kernel,
+        width: usize,
+        mut lane: impl FnMut(usize, usize, &mut [f64]),
+    ) -> bool {
+        let mut want = vec![0.0; self.out_len(kernel)];
+        let mut ok = true;
+        let matches = self.every_lane_matches(kernel, width, |c, l, got| {
+            lane(c, l, got);
+            self.call_generated(kernel, c * width + l, &mut want);
+            for (g, w) in got.iter_mut().zip(&want) {
+                if g.to_bits() == UNWRITTEN.to_bits() {
+                    ok &= w.to_bits() == 0;
+                    *g = 0.0;
+                }
+            }
+        });
+        matches && ok
+    }
+
     /// Whether lane `l` of call `c` of a `width`-lane kernel (`lane(c, l, out)` writes it; lanes
     /// of one call are asked for in order from 0) is bit for bit [`Case::call_generated`] on
     /// sample `width·c + l`, for the first four calls.
@@ -637,8 +743,14 @@ pub fn measure_arm(
             });
         }
         for (lanes, ok) in [
-            (LANES, case.lanes_match(kernel)),
-            (WIDE_LANES, case.lanes8_match(kernel)),
+            (
+                LANES,
+                case.lanes_match(kernel) && case.lanes_skip_zeros_match(kernel),
+            ),
+            (
+                WIDE_LANES,
+                case.lanes8_match(kernel) && case.lanes8_skip_zeros_match(kernel),
+            ),
         ] {
             if !ok {
                 return Err(BenchError::LanesMismatch {
@@ -648,7 +760,7 @@ pub fn measure_arm(
                 });
             }
         }
-        let (generated_ns, lanes_ns, lanes8_ns) = kernel.with(TimeGenerated {
+        let t = kernel.with(TimeGenerated {
             case: &case,
             settings,
         });
@@ -660,10 +772,12 @@ pub fn measure_arm(
         out.push(KernelTiming {
             arm: arm.name().to_string(),
             kernel: kernel.name(),
-            generated_ns,
+            generated_ns: t.single,
             reference_ns,
-            lanes_ns,
-            lanes8_ns,
+            lanes_ns: t.lanes,
+            lanes8_ns: t.lanes8,
+            lanes_skip_ns: t.lanes_skip,
+            lanes8_skip_ns: t.lanes8_skip,
         });
     }
     Ok(out)

@@ -2,7 +2,8 @@
 //! the lane type `L: crate::pack::Lane`, with `f64` replaced by `L`, every float literal `c` by
 //! `L::splat(c)` and `crate::trig::sin_cos{,2,3,4}` by the `L` methods of those names. The function becomes
 //! `<name>_lanes::<L>`, always inlined (into the `Model` methods that pick `L`, and into the
-//! AVX-512 wrappers, which must compile it with their target features).
+//! AVX-512 wrappers, which must compile it with their target features). Its `const ZEROS: bool`
+//! says whether it writes the constant-zero outputs (`false`: the `_skip_zeros` forms).
 
 use quote::{format_ident, quote};
 use syn::visit_mut::{self, VisitMut};
@@ -31,7 +32,9 @@ impl VisitMut for ToLanes {
 
     fn visit_expr_mut(&mut self, expr: &mut Expr) {
         if let Some(place) = zero_store(expr) {
-            *expr = parse_quote!(crate::pack::store_zero::<L>(&mut #place));
+            *expr = parse_quote!(if ZEROS {
+                crate::pack::store_zero::<L>(&mut #place)
+            });
             return;
         }
         match expr {
@@ -55,7 +58,10 @@ impl VisitMut for ToLanes {
 /// `out[k] = 0.0` (a constant zero output): its place, `out[k]`. Such stores become
 /// `crate::pack::store_zero::<L>` in the lane copies, so that the lane type decides how a zero is
 /// stored (the eight-lane one keeps LLVM from merging runs of them into a `memset` call: up to
-/// 131 of the SCARA regressor's 160 outputs are zeros).
+/// 131 of the SCARA regressor's 160 outputs are zeros), and only when the copy's `ZEROS` is
+/// true: the `_skip_zeros` forms leave those outputs as they are (the regressors' zeros cost
+/// the eight-lane forms about one cycle each, a 64-byte store: about a third of the Panda
+/// regressor's time).
 fn zero_store(expr: &Expr) -> Option<Expr> {
     let Expr::Assign(a) = expr else { return None };
     let Expr::Lit(ExprLit {
@@ -69,12 +75,13 @@ fn zero_store(expr: &Expr) -> Option<Expr> {
         .then(|| (*a.left).clone())
 }
 
-/// `fn name(..f64..)` → `fn name_lanes<L: Lane>(..L..)`.
+/// `fn name(..f64..)` → `fn name_lanes<L: Lane, const ZEROS: bool>(..L..)` (`ZEROS`: whether
+/// the constant-zero outputs are written).
 pub fn lane_copy(f: &ItemFn) -> ItemFn {
     let mut g = f.clone();
     g.sig.ident = format_ident!("{}_lanes", f.sig.ident);
     ToLanes.visit_item_fn_mut(&mut g);
-    g.sig.generics = parse_quote!(<L: crate::pack::Lane>);
+    g.sig.generics = parse_quote!(<L: crate::pack::Lane, const ZEROS: bool>);
     g.attrs.retain(|a| !a.path().is_ident("inline"));
     g.attrs.push(parse_quote!(#[inline(always)]));
     g.attrs

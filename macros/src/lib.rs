@@ -357,11 +357,38 @@ fn check_items(
 }
 
 /// The `Model` methods of one kernel for a generated arm: slices → fixed-size arrays, then the
-/// generated function (and likewise for its lane copy).
+/// generated function (and likewise for its lane copies: with and without the constant-zero
+/// outputs).
 fn impl_methods(k: &KernelSpec) -> proc_macro2::TokenStream {
     let name = format_ident!("{}", k.name);
-    let lanes = format_ident!("{}_lanes", k.name);
-    let lanes8 = format_ident!("{}_lanes8", k.name);
+    let args: Vec<Ident> = k.inputs.iter().map(|i| format_ident!("{}", i)).collect();
+    let labels = &k.inputs;
+    let lane_methods = LANE_FORMS.iter().map(|&(suffix, zeros)| {
+        let lanes = format_ident!("{}_lanes{}", k.name, suffix);
+        let lanes8 = format_ident!("{}_lanes8{}", k.name, suffix);
+        lane_methods(k, &lanes, &lanes8, zeros)
+    });
+    quote! {
+        fn #name(&self, #(#args: &[f64],)* out: &mut [f64]) {
+            #name(#(_arr(#args, #labels),)* _arr_mut(out, "out"))
+        }
+        #(#lane_methods)*
+    }
+}
+
+/// The lane-batched forms of every kernel: the `Model` method's suffix after `_lanes` /
+/// `_lanes8`, and whether it writes the constant-zero outputs.
+const LANE_FORMS: [(&str, bool); 2] = [("", true), ("_skip_zeros", false)];
+
+/// The four- and eight-lane `Model` methods `lanes` / `lanes8` of kernel `k`: its lane copy with
+/// `ZEROS = zeros`.
+fn lane_methods(
+    k: &KernelSpec,
+    lanes: &Ident,
+    lanes8: &Ident,
+    zeros: bool,
+) -> proc_macro2::TokenStream {
+    let copy = format_ident!("{}_lanes", k.name);
     let args: Vec<Ident> = k.inputs.iter().map(|i| format_ident!("{}", i)).collect();
     let labels = &k.inputs;
     // Array lengths of the inputs (`theta`: base parameters; the rest: one value per joint) and
@@ -378,12 +405,11 @@ fn impl_methods(k: &KernelSpec) -> proc_macro2::TokenStream {
         })
         .collect();
     let out_len: syn::Expr = syn::parse_str(&k.out_len).expect("checked by manifest::read");
+    // Without AVX-512, two four-lane calls into arrays on the stack, then joined: every output
+    // written, as the joining writes them all (correct for both forms, and only a fallback).
     quote! {
-        fn #name(&self, #(#args: &[f64],)* out: &mut [f64]) {
-            #name(#(_arr(#args, #labels),)* _arr_mut(out, "out"))
-        }
         fn #lanes(&self, #(#args: &[P],)* out: &mut [P]) {
-            #lanes::<P>(#(_arr(#args, #labels),)* _arr_mut(out, "out"))
+            #copy::<P, #zeros>(#(_arr(#args, #labels),)* _arr_mut(out, "out"))
         }
         fn #lanes8(&self, #(#args: &[W],)* out: &mut [W]) {
             #(let #args: &[W; #lens] = _arr(#args, #labels);)*
@@ -394,7 +420,7 @@ fn impl_methods(k: &KernelSpec) -> proc_macro2::TokenStream {
                 fn wide(#(#args: &[W; #lens],)* out: &mut [W; #out_len]) {
                     // SAFETY: compiled with AVX-512F, called only where the CPU has it.
                     unsafe {
-                        #lanes::<crate::pack::wide::Zmm>(
+                        #copy::<crate::pack::wide::Zmm, #zeros>(
                             #(crate::pack::wide::as_zmm(#args),)*
                             crate::pack::wide::as_zmm_mut(out),
                         )
@@ -410,8 +436,8 @@ fn impl_methods(k: &KernelSpec) -> proc_macro2::TokenStream {
             fn halves(#(#args: &[W; #lens],)* out: &mut [W; #out_len]) {
                 let mut lo = [P::default(); #out_len];
                 let mut hi = [P::default(); #out_len];
-                #lanes::<P>(#(&crate::pack::wide::halves(#args, 0),)* &mut lo);
-                #lanes::<P>(#(&crate::pack::wide::halves(#args, 1),)* &mut hi);
+                #copy::<P, true>(#(&crate::pack::wide::halves(#args, 0),)* &mut lo);
+                #copy::<P, true>(#(&crate::pack::wide::halves(#args, 1),)* &mut hi);
                 crate::pack::wide::join_into(&lo, &hi, out);
             }
             halves(#(#args,)* out)
@@ -456,7 +482,6 @@ pub fn kernel_methods(input: TokenStream) -> TokenStream {
     or_error(crate_manifest().map(|(kernels, _)| {
         let methods = kernels.iter().map(|k| {
             let name = format_ident!("{}", k.name);
-            let lanes = format_ident!("{}_lanes", k.name);
             let args: Vec<Ident> = k.inputs.iter().map(|i| format_ident!("{}", i)).collect();
             let doc = &k.doc;
             let theta_note = if k.inputs.iter().any(|i| i == "theta") {
@@ -464,24 +489,39 @@ pub fn kernel_methods(input: TokenStream) -> TokenStream {
             } else {
                 ""
             };
-            let lanes8 = format_ident!("{}_lanes8", k.name);
-            let lanes_doc = format!("[`Model::{}`] of `LANES` samples{theta_note}.", k.name);
-            let lanes8_doc = format!(
-                "[`Model::{}`] of `WIDE_LANES` (8) samples{theta_note}: AVX-512 where the CPU \
-                 has it, else two four-lane calls (see [`crate::pack::wide`]).",
-                k.name
-            );
+            let forms = LANE_FORMS.iter().map(|&(suffix, zeros)| {
+                let lanes = format_ident!("{}_lanes{}", k.name, suffix);
+                let lanes8 = format_ident!("{}_lanes8{}", k.name, suffix);
+                let mut lanes_doc = format!("[`Model::{}`] of `LANES` samples{theta_note}", k.name);
+                let mut lanes8_doc = format!(
+                    "[`Model::{}`] of `WIDE_LANES` (8) samples{theta_note}: AVX-512 where the CPU \
+                     has it, else two four-lane calls (see [`crate::pack::wide`])",
+                    k.name
+                );
+                if !zeros {
+                    for doc in [&mut lanes_doc, &mut lanes8_doc] {
+                        doc.push_str(
+                            ", without writing the outputs that are constant zeros: they keep \
+                             what `out` held (zero `out` once, then reuse it for this kernel of \
+                             this model; see [`crate::pack`])",
+                        );
+                    }
+                }
+                quote! {
+                    #[doc = #lanes_doc]
+                    fn #lanes(&self, #(#args: &[crate::pack::Pack],)* out: &mut [crate::pack::Pack]);
+                    #[doc = #lanes8_doc]
+                    fn #lanes8(
+                        &self,
+                        #(#args: &[crate::pack::wide::Pack8],)*
+                        out: &mut [crate::pack::wide::Pack8],
+                    );
+                }
+            });
             quote! {
                 #[doc = #doc]
                 fn #name(&self, #(#args: &[f64],)* out: &mut [f64]);
-                #[doc = #lanes_doc]
-                fn #lanes(&self, #(#args: &[crate::pack::Pack],)* out: &mut [crate::pack::Pack]);
-                #[doc = #lanes8_doc]
-                fn #lanes8(
-                    &self,
-                    #(#args: &[crate::pack::wide::Pack8],)*
-                    out: &mut [crate::pack::wide::Pack8],
-                );
+                #(#forms)*
             }
         });
         quote!(#(#methods)*)
@@ -519,26 +559,32 @@ pub fn kernel_enum(input: TokenStream) -> TokenStream {
             .collect();
         // The forms of every kernel, one call each: `Kernel`'s method, the value type, the `Model`
         // method's suffix, the doc.
-        let forms = [
-            (
-                format_ident!("call"),
-                quote!(f64),
-                "",
-                "Calls this kernel of `model`; inputs it does not take are ignored (`theta`: base parameters).",
-            ),
-            (
-                format_ident!("call_lanes"),
+        let mut forms = vec![(
+            format_ident!("call"),
+            quote!(f64),
+            String::new(),
+            "Calls this kernel of `model`; inputs it does not take are ignored (`theta`: base parameters).".to_string(),
+        )];
+        for (suffix, zeros) in LANE_FORMS {
+            let skip = if zeros {
+                ""
+            } else {
+                ", without writing the outputs that are constant zeros (they keep what `out` \
+                 held: zero it once, then reuse it for this kernel of this model)"
+            };
+            forms.push((
+                format_ident!("call_lanes{suffix}"),
                 quote!(crate::pack::Pack),
-                "_lanes",
-                "Calls the lane-batched copy of this kernel of `model` (see [`crate::pack`]).",
-            ),
-            (
-                format_ident!("call_lanes8"),
+                format!("_lanes{suffix}"),
+                format!("Calls the lane-batched copy of this kernel of `model` (see [`crate::pack`]){skip}."),
+            ));
+            forms.push((
+                format_ident!("call_lanes8{suffix}"),
                 quote!(crate::pack::wide::Pack8),
-                "_lanes8",
-                "Calls the eight-lane copy of this kernel of `model` (see [`crate::pack::wide`]).",
-            ),
-        ];
+                format!("_lanes8{suffix}"),
+                format!("Calls the eight-lane copy of this kernel of `model` (see [`crate::pack::wide`]){skip}."),
+            ));
+        }
         // The parameters every call of a form takes (`ty`: its value type).
         let params = |ty: &proc_macro2::TokenStream| {
             quote!(model: &dyn Model, q: &[#ty], dq: &[#ty], ddq: &[#ty], theta: &[#ty], out: &mut [#ty])

@@ -289,13 +289,15 @@ pub fn markdown(report: &Report, pin: &PinocchioTimes, info: &RunInfo) -> String
          `nonLinearEffects`, gravity vs `computeGeneralizedGravity`, inverse dynamics vs RNEA). \
          Operation counts are the generator's (binary `*` `/` and `+` `−`). *lanes*: the same generated kernel batched over 4 samples per call \
          (`dynid::pack`, one AVX instruction per operation), ns per *sample*; *8 lanes*: over 8 samples per call \
-         (`dynid::pack::wide`: {}), ns per sample, and *lanes / 8 lanes* the throughput gained by the wider form.\n",
+         (`dynid::pack::wide`: {}), ns per sample, and *lanes / 8 lanes* the throughput gained by the wider form; *zeros skipped*: the same ratio for the forms that leave the \
+         constant-zero outputs to the caller's buffer (`call_lanes_skip_zeros`, `call_lanes8_skip_zeros`: zero it once, then reuse it) — \
+         at eight lanes a regressor's zeros cost about one 64-byte store each, a cycle, whatever the width.\n",
         crate::pack::wide::wide_form()
     );
-    let _ = writeln!(s, "| arm | kernel | mul / add | generated | lanes (per sample) | 8 lanes (per sample) | lanes / 8 lanes | reference | Pinocchio | reference / generated | Pinocchio / generated | Pinocchio / lanes |");
+    let _ = writeln!(s, "| arm | kernel | mul / add | generated | lanes (per sample) | 8 lanes (per sample) | lanes / 8 lanes | zeros skipped | reference | Pinocchio | reference / generated | Pinocchio / generated | Pinocchio / lanes |");
     let _ = writeln!(
         s,
-        "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+        "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
     );
     for k in &report.kernels {
         let ops = crate::arms::find(&k.arm)
@@ -309,7 +311,7 @@ pub fn markdown(report: &Report, pin: &PinocchioTimes, info: &RunInfo) -> String
         let p = pin.get(&k.arm, k.kernel);
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {:.1} | {:.1} | {:.1} | {:.2}× | {:.1} | {} | {:.1}× | {} | {} |",
+            "| {} | {} | {} | {:.1} | {:.1} | {:.1} | {:.2}× | {:.2}× | {:.1} | {} | {:.1}× | {} | {} |",
             k.arm,
             k.kernel,
             ops,
@@ -317,6 +319,7 @@ pub fn markdown(report: &Report, pin: &PinocchioTimes, info: &RunInfo) -> String
             k.lanes_ns,
             k.lanes8_ns,
             k.lanes_ns / k.lanes8_ns,
+            k.lanes_skip_ns / k.lanes8_skip_ns,
             k.reference_ns,
             p.map_or("—".into(), |v| format!("{v:.0}")),
             k.reference_ns / k.generated_ns,
@@ -474,6 +477,8 @@ mod tests {
             reference_ns: r,
             lanes_ns: g / 4.0,
             lanes8_ns: g / 6.0,
+            lanes_skip_ns: g / 5.0,
+            lanes8_skip_ns: g / 9.0,
         };
         Report {
             kernels: vec![
@@ -529,7 +534,9 @@ mod tests {
         );
         assert!(md.contains("| puma560 | base_regressor |"));
         assert!(
-            md.contains("| 100.0 | 25.0 | 16.7 | 1.50× | 1600.0 | 1160 | 16.0× | 11.6× | 46.4× |"),
+            md.contains(
+                "| 100.0 | 25.0 | 16.7 | 1.50× | 1.80× | 1600.0 | 1160 | 16.0× | 11.6× | 46.4× |"
+            ),
             "{md}"
         );
         assert!(md.contains("| puma560 | gravity |") && md.contains("| — | 15.0× | — | — |"));

@@ -210,3 +210,24 @@ fn the_lane_check_catches_a_lane_from_another_sample() {
         assert!(!shifted, "{kernel:?}: a shifted lane passed");
     }
 }
+
+/// The skip-zeros lane check says yes for the kernels as they are, in both widths, and no when an
+/// output the scalar kernel gives as non-zero is left unwritten.
+#[test]
+fn the_skip_zeros_check_catches_an_unwritten_non_zero_output() {
+    let arm = crate::arms::find("puma560").expect("puma560");
+    let case = Case::new(arm);
+    for kernel in Kernel::ALL {
+        assert!(
+            case.lanes_skip_zeros_match(kernel) && case.lanes8_skip_zeros_match(kernel),
+            "{kernel:?}"
+        );
+        let left = case.every_lane_matches_skipping_zeros(kernel, 4, |c, l, got| {
+            case.call_generated(kernel, c * 4 + l, got);
+            if let Some(g) = got.iter_mut().find(|g| **g != 0.0) {
+                *g = UNWRITTEN;
+            }
+        });
+        assert!(!left, "{kernel:?}: an unwritten non-zero output passed");
+    }
+}

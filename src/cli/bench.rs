@@ -122,31 +122,38 @@ pub fn run(args: &Args) -> Result<()> {
 fn write_table(w: &mut dyn std::io::Write, report: &Report) -> std::io::Result<()> {
     writeln!(
         w,
-        "{:<10} {:<17} {:>14} {:>16} {:>17} {:>14} {:>8}",
+        "{:<10} {:<17} {:>14} {:>16} {:>17} {:>13} {:>14} {:>8}",
         "ARM",
         "KERNEL",
         "GENERATED ns",
         "LANES ns/sample",
         "LANES8 ns/sample",
+        "LANES/LANES8",
         "REFERENCE ns",
         "REF/GEN"
     )?;
     for k in &report.kernels {
         writeln!(
             w,
-            "{:<10} {:<17} {:>14.1} {:>16.1} {:>17.1} {:>14.1} {:>7.1}×",
+            "{:<10} {:<17} {:>14.1} {:>16.1} {:>17.1} {:>13} {:>14.1} {:>7.1}×",
             k.arm,
             k.kernel,
             k.generated_ns,
             k.lanes_ns,
             k.lanes8_ns,
+            format!(
+                "{:.2}× ({:.2}×)",
+                k.lanes_ns / k.lanes8_ns,
+                k.lanes_skip_ns / k.lanes8_skip_ns
+            ),
             k.reference_ns,
             k.reference_ns / k.generated_ns
         )?;
     }
     writeln!(
         w,
-        "(LANES: the same generated kernel on {} samples per call, dynid::pack; LANES8: on {}, {})",
+        "(LANES: the same generated kernel on {} samples per call, dynid::pack; LANES8: on {}, {}; in parentheses \
+         the ratio of the forms that skip the constant-zero outputs)",
         crate::pack::LANES,
         crate::pack::wide::WIDE_LANES,
         crate::pack::wide::wide_form()

@@ -246,6 +246,116 @@ fn eight_lane_kernels_equal_the_scalar_kernels_bit_for_bit_in_both_forms() {
     force_halves(false);
 }
 
+/// The outputs a kernel writes as the constant `0.0` in `generated/<arm>.rs` (the oracle of the
+/// skip-zeros forms: read from the source text, not from the macro that turns those stores into
+/// skipped ones).
+fn constant_zero_outputs(arm: &str, kernel: &str) -> Vec<usize> {
+    let path = format!("{}/generated/{arm}.rs", env!("CARGO_MANIFEST_DIR"));
+    let src = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
+    let start = src
+        .find(&format!("\npub fn {kernel}("))
+        .unwrap_or_else(|| panic!("{path}: no `pub fn {kernel}`"));
+    let body = &src[start..];
+    let body = &body[..body.find("\n}\n").expect("the function's closing brace")];
+    body.lines()
+        .filter_map(|l| {
+            let k = l.trim().strip_prefix("out[")?.strip_suffix("] = 0.0;")?;
+            Some(k.parse().expect("an output index"))
+        })
+        .collect()
+}
+
+/// The skip-zeros forms (`Kernel::call_lanes_skip_zeros`, `call_lanes8_skip_zeros`) write every
+/// output but the generated source's constant zeros, each lane bit for bit the scalar kernel, and
+/// leave exactly those zeros as the buffer held them — four lanes, eight (AVX-512 where this CPU
+/// has it); the eight-lane fallback (two four-lane calls) writes them all, as documented. The
+/// regressors have such zeros (so the test is not vacuous there).
+#[test]
+fn skip_zeros_forms_leave_exactly_the_constant_zeros_unwritten() {
+    use dynid::pack::wide::{avx512, force_halves, Pack8, WIDE_LANES};
+    use dynid::pack::{Pack, LANES};
+    const SENTINEL: f64 = 12345.678;
+    let mut r = rng(79);
+    let mut checked_zeros = 0;
+    for &m in dynid::arms::all() {
+        let (n, np, nb) = (m.dof(), m.np(), m.nb());
+        let samples: Vec<[Vec<f64>; 4]> = (0..WIDE_LANES)
+            .map(|_| {
+                let (q, dq, ddq) = random_state(&mut r, n);
+                let theta: Vec<f64> = (0..nb).map(|_| r.gen_range(-2.0..2.0)).collect();
+                [q, dq, ddq, theta]
+            })
+            .collect();
+        let pack8 = |k: usize, len: usize| -> Vec<Pack8> {
+            (0..len)
+                .map(|j| Pack8::new(std::array::from_fn(|l| samples[l][k][j])))
+                .collect()
+        };
+        let (q8, dq8, ddq8, th8) = (pack8(0, n), pack8(1, n), pack8(2, n), pack8(3, nb));
+        let lo = |v: &[Pack8]| -> Vec<Pack> {
+            v.iter()
+                .map(|p| Pack::new(std::array::from_fn(|l| p.to_array()[l])))
+                .collect()
+        };
+        let (q4, dq4, ddq4, th4) = (lo(&q8), lo(&dq8), lo(&ddq8), lo(&th8));
+        for kernel in Kernel::ALL {
+            let len = kernel.out_len(n, np, nb);
+            let zeros = constant_zero_outputs(m.name(), kernel.name());
+            checked_zeros += zeros.len();
+            let mut want = vec![vec![0.0; len]; WIDE_LANES];
+            for (l, s) in samples.iter().enumerate() {
+                kernel.call(m, &s[0], &s[1], &s[2], &s[3], &mut want[l]);
+            }
+            // (width, form, whether the zeros are left unwritten, lanes of each output)
+            let mut runs: Vec<(usize, &str, bool, Vec<Vec<f64>>)> = Vec::new();
+            let mut out4 = vec![Pack::splat(SENTINEL); len];
+            kernel.call_lanes_skip_zeros(m, &q4, &dq4, &ddq4, &th4, &mut out4);
+            let lanes4 = out4.iter().map(|p| p.to_array().to_vec()).collect();
+            runs.push((LANES, "four lanes", true, lanes4));
+            let mut forms = vec![false];
+            if avx512() {
+                forms.push(true);
+            }
+            for wide in forms {
+                force_halves(!wide);
+                let mut out8 = vec![Pack8::splat(SENTINEL); len];
+                kernel.call_lanes8_skip_zeros(m, &q8, &dq8, &ddq8, &th8, &mut out8);
+                let lanes8 = out8.iter().map(|p| p.to_array().to_vec()).collect();
+                runs.push((
+                    WIDE_LANES,
+                    if wide { "avx512" } else { "halves" },
+                    wide,
+                    lanes8,
+                ));
+            }
+            force_halves(false);
+            for (width, form, skips, got) in runs {
+                for (k, lanes) in got.iter().enumerate() {
+                    for (l, &g) in lanes.iter().enumerate().take(width) {
+                        let w = want[l][k];
+                        let ok = if skips && zeros.contains(&k) {
+                            g == SENTINEL
+                        } else {
+                            g.to_bits() == w.to_bits()
+                        };
+                        assert!(
+                            ok,
+                            "{} {} ({form}) output {k} lane {l}: {g} (scalar {w}; constant zero: {})",
+                            m.name(),
+                            kernel.name(),
+                            zeros.contains(&k)
+                        );
+                    }
+                }
+            }
+        }
+    }
+    assert!(
+        checked_zeros > 100,
+        "only {checked_zeros} constant zeros found in the sources"
+    );
+}
+
 /// `Kernel::with` hands its visitor the very kind it was called on (the bench's timing loops
 /// choose the kernel this way, once per loop), whose `KernelCall` type — through which
 /// `Kernel::call` dispatches too — gives that kind's outputs, its lane-batched copy the same bit
