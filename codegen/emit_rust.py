@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import casadi as ca
 
+from .fuse import fuse
 from .schedule import schedule
 
 BINARY = {ca.OP_ADD: "+", ca.OP_SUB: "-", ca.OP_MUL: "*", ca.OP_DIV: "/"}
@@ -38,8 +39,9 @@ def literal(x: float) -> str:
 def emit(
     f: ca.Function, input_name: Callable[[int, int], str], n_out: int, out: str = "out", reorder: bool = True
 ) -> Body:
-    """Body of a Rust function evaluating f's single output into `out[0..n_out]`, its statements
-    in the order of `schedule` (CasADi's with `reorder=False`)."""
+    """Body of a Rust function evaluating f's single output into `out[0..n_out]`, single-use
+    products fused into the sums that read them (`fuse`), its statements in the order of
+    `schedule` (CasADi's with `reorder=False`)."""
     slot: dict[int, str] = {}
     lines: list[str] = []
     written: set[int] = set()
@@ -101,4 +103,5 @@ def emit(
     for idx in range(n_out):
         if idx not in written:
             lines.append(f"{out}[{idx}] = 0.0;")
+    lines = fuse(lines)
     return Body(schedule(lines) if reorder else lines, n_mul, n_add, used)

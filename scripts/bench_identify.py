@@ -133,14 +133,24 @@ def comparable(report: Path) -> object:
     return d
 
 
-def close(a: object, b: object) -> bool:
-    """Equal, numbers to 1e-6 relative (the scan's held-out errors move in the 9th digit)."""
+def close(a: object, b: object, solver: bool = False) -> bool:
+    """Equal, numbers to 1e-6 relative (the scan's held-out errors move in the 9th digit). In the
+    `physical` block (`solver`): to 1e-4 relative or 1e-7 absolute, its Newton step count not
+    compared. That block is an interior-point solution stopped at a duality gap of 1e-10 of its
+    objective, which fixes a parameter in a direction the data barely curve only to about the
+    square root of that: a kernel's rounding (generator 0.1.5's fused multiply-adds, 1e-12 in the
+    fit) moved a 0.8 mm centre-of-mass coordinate by 8e-5 relative and the step count 77 -> 74."""
     if isinstance(a, dict) and isinstance(b, dict):
-        return a.keys() == b.keys() and all(close(a[k], b[k]) for k in a)
+        return a.keys() == b.keys() and all(
+            close(a[k], b[k], solver or k == "physical") for k in a if not (solver and k == "newton_steps")
+        )
     if isinstance(a, list) and isinstance(b, list):
-        return len(a) == len(b) and all(close(x, y) for x, y in zip(a, b))
+        return len(a) == len(b) and all(close(x, y, solver) for x, y in zip(a, b))
     if isinstance(a, float) and isinstance(b, float):
-        return abs(a - b) <= 1e-6 * max(abs(a), abs(b), 1e-300)
+        d = abs(a - b)
+        if solver:
+            return d <= 1e-4 * max(abs(a), abs(b)) or d <= 1e-7
+        return d <= 1e-6 * max(abs(a), abs(b), 1e-300)
     return a == b
 
 

@@ -99,6 +99,22 @@ mod imp {
             // Flip the sign bit: exactly `-x` per lane (also for ±0 and NaN).
             Pack(unsafe { _mm256_xor_pd(self.0, _mm256_set1_pd(-0.0)) })
         }
+        /// `self·b + c` lane by lane, [`crate::trig::mul_add`]'s value: one fused instruction
+        /// where the target has FMA.
+        #[inline(always)]
+        pub(super) fn mul_add(self, b: Self, c: Self) -> Self {
+            #[cfg(target_feature = "fma")]
+            {
+                Pack(unsafe { std::arch::x86_64::_mm256_fmadd_pd(self.0, b.0, c.0) })
+            }
+            #[cfg(not(target_feature = "fma"))]
+            {
+                let (a, b, c) = (self.to_array(), b.to_array(), c.to_array());
+                Pack::new(std::array::from_fn(|l| {
+                    crate::trig::mul_add(a[l], b[l], c[l])
+                }))
+            }
+        }
     }
 }
 
@@ -145,6 +161,13 @@ mod imp {
         #[inline(always)]
         pub(super) fn neg(self) -> Self {
             Pack(self.0.map(|x| -x))
+        }
+        /// `self·b + c` lane by lane, [`crate::trig::mul_add`]'s value.
+        #[inline(always)]
+        pub(super) fn mul_add(self, b: Self, c: Self) -> Self {
+            Pack(std::array::from_fn(|l| {
+                crate::trig::mul_add(self.0[l], b.0[l], c.0[l])
+            }))
         }
     }
 }
@@ -209,6 +232,9 @@ pub trait Lane:
 {
     /// `x` in every lane.
     fn splat(x: f64) -> Self;
+    /// `self·b + c` lane by lane, bit for bit [`crate::trig::mul_add`] of each lane (fused where
+    /// the target has FMA): the generated kernels' fused multiply-adds.
+    fn mul_add(self, b: Self, c: Self) -> Self;
     /// `(sin x, cos x)` lane by lane, bit for bit [`crate::trig::sin_cos`] of each lane.
     fn sin_cos(self) -> (Self, Self);
     /// [`Lane::sin_cos`] of four values (the lane form of [`crate::trig::sin_cos4`]: the lanes
@@ -239,6 +265,10 @@ impl Lane for Pack {
     #[inline(always)]
     fn splat(x: f64) -> Self {
         Pack::splat(x)
+    }
+    #[inline(always)]
+    fn mul_add(self, b: Self, c: Self) -> Self {
+        Pack::mul_add(self, b, c)
     }
     #[inline(always)]
     fn sin_cos(self) -> (Self, Self) {
@@ -336,7 +366,29 @@ mod tests {
             assert_eq!((pa * pb).to_array()[l], a[l] * b[l]);
             assert_eq!((pa / pb).to_array()[l].to_bits(), (a[l] / b[l]).to_bits());
             assert_eq!((-pb).to_array()[l].to_bits(), (-b[l]).to_bits());
+            let fused = Lane::mul_add(pa, pb, -pa).to_array()[l];
+            assert_eq!(
+                fused.to_bits(),
+                crate::trig::mul_add(a[l], b[l], -a[l]).to_bits()
+            );
         }
+    }
+
+    /// `crate::trig::mul_add` (the kernels' fused multiply-add) rounds once where the target has
+    /// FMA — (1 + 2⁻³⁰)(1 − 2⁻³⁰) − 1 is −2⁻⁶⁰ exactly, 0 when the product is rounded first — and
+    /// the four-lane form gives the same value.
+    #[test]
+    fn mul_add_is_fused_where_the_target_has_fma() {
+        let e = (-30f64).exp2();
+        let (a, b) = (1.0 + e, 1.0 - e);
+        let want = if cfg!(target_feature = "fma") {
+            -(-60f64).exp2()
+        } else {
+            0.0
+        };
+        assert_eq!(crate::trig::mul_add(a, b, -1.0), want);
+        let p = Lane::mul_add(Pack::splat(a), Pack::splat(b), Pack::splat(-1.0));
+        assert_eq!(p.to_array(), [want; 4]);
     }
 
     /// Bit for bit the scalar kernels' values, on the fast path, near multiples of π/2 (the

@@ -1,6 +1,7 @@
 //! The lane-batched copy of a generated kernel (see `dynid::pack`): the same body, generic over
 //! the lane type `L: crate::pack::Lane`, with `f64` replaced by `L`, every float literal `c` by
-//! `L::splat(c)` and `crate::trig::sin_cos{,2,3,4}` by the `L` methods of those names. The function becomes
+//! `L::splat(c)` and `crate::trig::sin_cos{,2,3,4}` and `crate::trig::mul_add` by the `L` methods of
+//! those names. The function becomes
 //! `<name>_lanes::<L>`, always inlined (into the `Model` methods that pick `L`, and into the
 //! AVX-512 wrappers, which must compile it with their target features). Its `const ZEROS: bool`
 //! says whether it writes the constant-zero outputs (`false`: the `_skip_zeros` forms).
@@ -11,12 +12,14 @@ use syn::{parse_quote, Expr, ExprLit, ExprPath, ItemFn, Lit, Type};
 
 struct ToLanes;
 
-/// The trigonometry the kernels call, each mapped to the `crate::pack::Lane` method of its name.
-const TRIG: [&str; 4] = [
+/// The functions the kernels call (trigonometry and fused multiply-adds), each mapped to the
+/// `crate::pack::Lane` method of its name.
+const CALLS: [&str; 5] = [
     "crate::trig::sin_cos",
     "crate::trig::sin_cos2",
     "crate::trig::sin_cos3",
     "crate::trig::sin_cos4",
+    "crate::trig::mul_add",
 ];
 
 impl VisitMut for ToLanes {
@@ -45,7 +48,7 @@ impl VisitMut for ToLanes {
                 *expr = parse_quote!(<L as crate::pack::Lane>::splat(#f));
             }
             Expr::Path(ExprPath { path, .. })
-                if TRIG.contains(&quote!(#path).to_string().replace(' ', "").as_str()) =>
+                if CALLS.contains(&quote!(#path).to_string().replace(' ', "").as_str()) =>
             {
                 let name = path.segments.last().expect("a path").ident.clone();
                 *expr = parse_quote!(<L as crate::pack::Lane>::#name);

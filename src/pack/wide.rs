@@ -215,6 +215,12 @@ mod zmm {
         fn splat(x: f64) -> Self {
             Zmm(unsafe { _mm512_set1_pd(x) })
         }
+        /// One `vfmadd` (AVX-512F): the fused value, as [`crate::trig::mul_add`] gives it on
+        /// this target (AVX-512F implies FMA).
+        #[inline(always)]
+        fn mul_add(self, b: Self, c: Self) -> Self {
+            Zmm(unsafe { _mm512_fmadd_pd(self.0, b.0, c.0) })
+        }
         /// One store per zero (volatile: never merged into a `memset`; see
         /// [`crate::pack::store_zero`]).
         #[inline(always)]
@@ -264,7 +270,8 @@ mod tests {
         assert_eq!(out, arr);
     }
 
-    /// The AVX-512 operations and trigonometry are the scalar ones lane by lane, bit for bit (on
+    /// The AVX-512 operations (the fused multiply-add among them) and trigonometry are the scalar
+    /// ones lane by lane, bit for bit (on
     /// a CPU without AVX-512 there is nothing of this form to run: the kernels use the halves).
     #[cfg(all(target_arch = "x86_64", target_feature = "fma"))]
     #[test]
@@ -279,15 +286,18 @@ mod tests {
             // SAFETY: this function is compiled with AVX-512F and called only where the CPU has it.
             let (za, zb) = unsafe { (as_zmm(&[pa])[0], as_zmm(&[pb])[0]) };
             type Scalar = fn(f64, f64) -> f64;
-            let ops: [(Zmm, Scalar); 5] = [
+            let ops: [(Zmm, Scalar); 6] = [
                 (za + zb, |x, y| x + y),
                 (za - zb, |x, y| x - y),
                 (za * zb, |x, y| x * y),
                 (za / zb, |x, y| x / y),
                 (-za, |x, _| -x),
+                (crate::pack::Lane::mul_add(za, zb, -za), |x, y| {
+                    crate::trig::mul_add(x, y, -x)
+                }),
             ];
             let (s, c) = crate::pack::Lane::sin_cos(za);
-            let mut got = [[Pack8::default(); 1]; 7];
+            let mut got = [[Pack8::default(); 1]; 8];
             for (g, z) in got.iter_mut().zip(ops.iter().map(|o| o.0).chain([s, c])) {
                 // SAFETY: as above.
                 unsafe { as_zmm_mut(g)[0] = z };
@@ -302,7 +312,7 @@ mod tests {
                 }
                 let (s0, c0) = crate::trig::sin_cos(a[l]);
                 assert_eq!(
-                    (got[5][0].0[l].to_bits(), got[6][0].0[l].to_bits()),
+                    (got[6][0].0[l].to_bits(), got[7][0].0[l].to_bits()),
                     (s0.to_bits(), c0.to_bits()),
                     "x = {:e}",
                     a[l]
