@@ -501,9 +501,9 @@ pub fn kernel_methods(input: TokenStream) -> TokenStream {
                 if !zeros {
                     for doc in [&mut lanes_doc, &mut lanes8_doc] {
                         doc.push_str(
-                            ", without writing the outputs that are constant zeros: they keep \
-                             what `out` held (zero `out` once, then reuse it for this kernel of \
-                             this model; see [`crate::pack`])",
+                            ", without writing the outputs that are constant zeros: `out` must \
+                             hold zeros there (zero it once, then reuse it for this kernel of this \
+                             model; see [`crate::pack`])",
                         );
                     }
                 }
@@ -569,8 +569,8 @@ pub fn kernel_enum(input: TokenStream) -> TokenStream {
             let skip = if zeros {
                 ""
             } else {
-                ", without writing the outputs that are constant zeros (they keep what `out` \
-                 held: zero it once, then reuse it for this kernel of this model)"
+                ", without writing the outputs that are constant zeros (`out` must hold zeros \
+                 there: zero it once, then reuse it for this kernel of this model)"
             };
             forms.push((
                 format_ident!("call_lanes{suffix}"),
