@@ -92,7 +92,8 @@ impl<'a> Rows<'a> {
         if self.layout.terms.iter().any(|t| t.effect.needs_load()) {
             let buf = self.fill_grid(st, k);
             for (j, o) in out.iter_mut().enumerate() {
-                o.extend(active[j].iter().map(|&c| buf[j * nc + c]));
+                let row = &buf[j * nc..(j + 1) * nc];
+                o.extend(active[j].iter().map(move |&c| row[c]));
             }
             return;
         }
@@ -100,9 +101,12 @@ impl<'a> Rows<'a> {
         let (terms, scales) = (&self.layout.terms, &self.layout.scales);
         for (j, o) in out.iter_mut().enumerate() {
             let (q, dq, ddq) = (self.q[j], self.dq[j], self.ddq[j]);
-            o.extend(active[j].iter().map(|&c| match c.checked_sub(nb) {
-                None => self.yb[j * nb + c],
-                Some(i) => terms[i].effect.column(q, dq, ddq, 0.0, &scales[j]),
+            // From locals moved into the closure: reading `self.yb` and `nb` through references
+            // reloaded them for every element (the writes to `o` could alias them).
+            let (yb, scale) = (&self.yb[j * nb..(j + 1) * nb], &scales[j]);
+            o.extend(active[j].iter().map(move |&c| match c.checked_sub(nb) {
+                None => yb[c],
+                Some(i) => terms[i].effect.column(q, dq, ddq, 0.0, scale),
             }));
         }
     }
@@ -241,7 +245,8 @@ impl RowTable {
                 .collect();
             let mut add = |buf: &[f64]| {
                 for (j, o) in out.iter_mut().enumerate() {
-                    o.extend(active[j].iter().map(|&c| buf[j * nc + c]));
+                    let row = &buf[j * nc..(j + 1) * nc];
+                    o.extend(active[j].iter().map(move |&c| row[c]));
                 }
             };
             let tau = match given {
