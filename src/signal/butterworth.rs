@@ -145,10 +145,11 @@ impl Butterworth {
         self.order
     }
 
-    /// Zero-phase filtering of `L` equally long channels at once, interleaved so the recursions
-    /// of all channels and sections run side by side in one sweep each way (per channel the
-    /// same operations whatever `L`, so the same numbers bit for bit). Odd reflection about the
-    /// end points (value and slope continuous) pads the ends that are the signal's own.
+    /// Zero-phase filtering of up to `L` equally long channels at once, interleaved so the
+    /// recursions of all channels and sections run side by side in one sweep each way (per
+    /// channel the same operations whatever `L`, so the same numbers bit for bit; lanes beyond
+    /// the channels given repeat the last one and are not written back). Odd reflection about
+    /// the end points (value and slope continuous) pads the ends that are the signal's own.
     fn apply_lanes<const L: usize>(&self, xs: &mut [&mut [f64]], pad_left: bool, pad_right: bool) {
         let n = xs[0].len();
         if n < 2 {
@@ -158,7 +159,8 @@ impl Butterworth {
         let (pl, pr) = (if pad_left { p } else { 0 }, if pad_right { p } else { 0 });
         let len = n + pl + pr;
         let mut ext = vec![[0.0f64; L]; len];
-        for (l, x) in xs.iter().enumerate() {
+        for l in 0..L {
+            let x = &xs[l.min(xs.len() - 1)];
             for i in 1..=pl {
                 ext[pl - i][l] = 2.0 * x[0] - x[i];
             }
@@ -187,14 +189,29 @@ impl Butterworth {
         &self,
         x: &[f64],
         stride: usize,
-        cols: &[usize],
+        cols: &[usize; L],
         pad_left: bool,
         pad_right: bool,
         keep: &[usize],
         out: &mut [f64],
     ) {
         let n = x.len() / stride;
-        let at = |k: usize| -> [f64; L] { std::array::from_fn(|l| x[k * stride + cols[l]]) };
+        let adjacent = cols.windows(2).all(|w| w[1] == w[0] + 1);
+        // Row k's columns: one contiguous load when they are adjacent (the usual case).
+        let at = |k: usize| -> [f64; L] {
+            let r = &x[k * stride..(k + 1) * stride];
+            if adjacent {
+                r[cols[0]..cols[0] + L]
+                    .try_into()
+                    .expect("L adjacent columns")
+            } else {
+                let mut v = [0.0; L];
+                for (v, &c) in v.iter_mut().zip(cols) {
+                    *v = r[c];
+                }
+                v
+            }
+        };
         if n < 2 {
             for (i, &k) in keep.iter().enumerate() {
                 let v = at(k);
@@ -206,33 +223,56 @@ impl Butterworth {
         }
         let p = self.pad_len().min(n - 1);
         let (pl, pr) = (if pad_left { p } else { 0 }, if pad_right { p } else { 0 });
-        let mut ext = vec![[0.0f64; L]; n + pl + pr];
+        let mut ext: Vec<[f64; L]> = Vec::with_capacity(n + pl + pr);
         let (first, last) = (at(0), at(n - 1));
-        for i in 1..=pl {
+        ext.extend((1..=pl).rev().map(|i| {
             let v = at(i);
-            ext[pl - i] = std::array::from_fn(|l| 2.0 * first[l] - v[l]);
-        }
-        if cols.windows(2).all(|w| w[1] == w[0] + 1) {
-            // Adjacent columns (the usual case): one contiguous load per row.
-            for (e, r) in ext[pl..pl + n].iter_mut().zip(x.chunks_exact(stride)) {
-                *e = r[cols[0]..cols[0] + L]
-                    .try_into()
-                    .expect("L adjacent columns");
-            }
-        } else {
-            for k in 0..n {
-                ext[pl + k] = at(k);
-            }
-        }
-        for i in 1..=pr {
+            std::array::from_fn(|l| 2.0 * first[l] - v[l])
+        }));
+        ext.extend((0..n).map(at));
+        ext.extend((1..=pr).map(|i| {
             let v = at(n - 1 - i);
-            ext[pl + n - 1 + i] = std::array::from_fn(|l| 2.0 * last[l] - v[l]);
-        }
+            std::array::from_fn(|l| 2.0 * last[l] - v[l])
+        }));
         Biquad::cascade_lanes(&self.sections, ext.iter_mut());
         Biquad::cascade_lanes(&self.sections, ext.iter_mut().rev());
         for (i, &k) in keep.iter().enumerate() {
-            for l in 0..L {
-                out[i * stride + cols[l]] = ext[pl + k][l];
+            let o = &mut out[i * stride..(i + 1) * stride];
+            if adjacent {
+                o[cols[0]..cols[0] + L].copy_from_slice(&ext[pl + k]);
+            } else {
+                for (&c, &v) in cols.iter().zip(&ext[pl + k]) {
+                    o[c] = v;
+                }
+            }
+        }
+    }
+
+    /// Columns `cols` of [`ZeroPhase::apply_rows`] by `L` side by side, the last group
+    /// overlapping the one before it (its shared columns are filtered twice, to the same
+    /// numbers); fewer than `L` columns go alone.
+    #[allow(clippy::too_many_arguments)]
+    fn apply_rows_by<const L: usize>(
+        &self,
+        x: &[f64],
+        stride: usize,
+        cols: &[usize],
+        pad_left: bool,
+        pad_right: bool,
+        keep: &[usize],
+        out: &mut [f64],
+    ) {
+        let m = cols.len();
+        let starts = (0..m.saturating_sub(L))
+            .step_by(L)
+            .chain((m >= L).then(|| m - L));
+        for s in starts {
+            let g: &[usize; L] = cols[s..s + L].try_into().expect("L columns");
+            self.apply_rows_lanes::<L>(x, stride, g, pad_left, pad_right, keep, out);
+        }
+        if m < L {
+            for c in cols {
+                self.apply_rows_lanes::<1>(x, stride, &[*c], pad_left, pad_right, keep, out);
             }
         }
     }
@@ -255,19 +295,15 @@ impl ZeroPhase for Butterworth {
     }
 
     fn apply_many(&self, xs: &mut [&mut [f64]], pad_left: bool, pad_right: bool) {
-        // Eight channels hide the latency of the recursions; the rest go by four, then alone.
-        let wide = xs.len() / 8 * 8;
-        let (a, rest) = xs.split_at_mut(wide);
-        for group in a.chunks_mut(8) {
-            self.apply_lanes::<8>(group, pad_left, pad_right);
-        }
-        let mid = rest.len() / 4 * 4;
-        let (b, rest) = rest.split_at_mut(mid);
-        for group in b.chunks_mut(4) {
-            self.apply_lanes::<4>(group, pad_left, pad_right);
-        }
-        for x in rest.iter_mut() {
-            self.apply(x, pad_left, pad_right);
+        // Sixteen channels side by side (two vectors of independent recursions in flight hide
+        // each other's latency); the last group in the narrowest form that holds it.
+        for g in xs.chunks_mut(16) {
+            match g.len() {
+                9.. => self.apply_lanes::<16>(g, pad_left, pad_right),
+                5.. => self.apply_lanes::<8>(g, pad_left, pad_right),
+                2.. => self.apply_lanes::<4>(g, pad_left, pad_right),
+                _ => self.apply_lanes::<1>(g, pad_left, pad_right),
+            }
         }
     }
 
@@ -281,18 +317,14 @@ impl ZeroPhase for Butterworth {
         keep: &[usize],
         out: &mut [f64],
     ) {
-        // As `apply_many`: by eight, then four, then alone.
-        let wide = cols.len() / 8 * 8;
-        let mid = wide + (cols.len() - wide) / 4 * 4;
-        for g in cols[..wide].chunks(8) {
-            self.apply_rows_lanes::<8>(x, stride, g, pad_left, pad_right, keep, out);
-        }
-        for g in cols[wide..mid].chunks(4) {
-            self.apply_rows_lanes::<4>(x, stride, g, pad_left, pad_right, keep, out);
-        }
-        for g in cols[mid..].chunks(1) {
-            self.apply_rows_lanes::<1>(x, stride, g, pad_left, pad_right, keep, out);
-        }
+        // Sixteen columns side by side (two vectors of independent recursions in flight hide
+        // each other's latency), eight when there are fewer, four when fewer still.
+        let f = match cols.len() {
+            16.. => Self::apply_rows_by::<16>,
+            8.. => Self::apply_rows_by::<8>,
+            _ => Self::apply_rows_by::<4>,
+        };
+        f(self, x, stride, cols, pad_left, pad_right, keep, out);
     }
 
     fn reach(&self) -> usize {
@@ -356,54 +388,61 @@ mod tests {
 
     #[test]
     fn side_by_side_filtering_equals_one_channel_at_a_time() {
-        // 13 channels: a group of 8, one of 4 and one alone, with and without end padding; order 5
-        // includes the first-order section.
-        for order in [4, 5] {
-            let f = Butterworth::lowpass(order, 3.0, 200.0).unwrap();
-            for (pl, pr) in [(true, true), (false, true), (true, false), (false, false)] {
-                let chans: Vec<Vec<f64>> = (0..13)
-                    .map(|c| {
-                        (0..700)
-                            .map(|k| sines(k as f64 * 0.005 + c as f64).0 + 0.01 * c as f64)
-                            .collect()
-                    })
-                    .collect();
-                let one: Vec<Vec<f64>> = chans
-                    .iter()
-                    .map(|x| reference_filtfilt(&f, x, pl, pr))
-                    .collect();
-                let mut alone = chans.clone();
-                for x in &mut alone {
-                    f.apply(x, pl, pr);
+        // Channel counts that make every group form: alone, four, eight and sixteen side by
+        // side, a last group padded (`apply_many`) or overlapping the one before (`apply_rows`);
+        // with and without end padding; order 5 includes the first-order section.
+        for count in [1, 3, 5, 13, 21, 35] {
+            for order in [4, 5] {
+                let f = Butterworth::lowpass(order, 3.0, 200.0).unwrap();
+                for (pl, pr) in [(true, true), (false, true), (true, false), (false, false)] {
+                    check_side_by_side(&f, count, pl, pr);
                 }
-                assert_eq!(one, alone, "order {order}, pads {pl} {pr}");
-                let mut many = chans.clone();
-                let mut refs: Vec<&mut [f64]> = many.iter_mut().map(|v| v.as_mut_slice()).collect();
-                f.apply_many(&mut refs, pl, pr);
-                assert_eq!(one, many, "order {order}, pads {pl} {pr}");
-                assert_ne!(one, chans);
-                // Row-major, two columns not asked for (left as they were in `out`), every 7th
-                // row kept.
-                let stride = 15;
-                let cols: Vec<usize> = (0..stride).filter(|c| *c != 3 && *c != 9).collect();
-                let mut x = vec![f64::NAN; 700 * stride];
-                for (ch, &c) in chans.iter().zip(&cols) {
-                    for (k, v) in ch.iter().enumerate() {
-                        x[k * stride + c] = *v;
-                    }
-                }
-                let keep: Vec<usize> = (0..700).step_by(7).collect();
-                let mut out = vec![-1.0; keep.len() * stride];
-                f.apply_rows(&x, stride, &cols, pl, pr, &keep, &mut out);
-                for (i, &k) in keep.iter().enumerate() {
-                    for (ch, &c) in one.iter().zip(&cols) {
-                        assert_eq!(
-                            out[i * stride + c],
-                            ch[k],
-                            "order {order}, column {c}, row {k}"
-                        );
-                    }
-                    assert_eq!((out[i * stride + 3], out[i * stride + 9]), (-1.0, -1.0));
+            }
+        }
+    }
+
+    fn check_side_by_side(f: &Butterworth, count: usize, pl: bool, pr: bool) {
+        let what = format!("{count} channels, order {}, pads {pl} {pr}", f.order);
+        let chans: Vec<Vec<f64>> = (0..count)
+            .map(|c| {
+                (0..700)
+                    .map(|k| sines(k as f64 * 0.005 + c as f64).0 + 0.01 * c as f64)
+                    .collect()
+            })
+            .collect();
+        let one: Vec<Vec<f64>> = chans
+            .iter()
+            .map(|x| reference_filtfilt(f, x, pl, pr))
+            .collect();
+        let mut alone = chans.clone();
+        for x in &mut alone {
+            f.apply(x, pl, pr);
+        }
+        assert_eq!(one, alone, "{what}");
+        let mut many = chans.clone();
+        let mut refs: Vec<&mut [f64]> = many.iter_mut().map(|v| v.as_mut_slice()).collect();
+        f.apply_many(&mut refs, pl, pr);
+        assert_eq!(one, many, "{what}");
+        assert_ne!(one, chans);
+        // Row-major, columns not asked for in between and at the end (left as they were in
+        // `out`; a run of adjacent columns is read as one), every 7th row kept.
+        let cols: Vec<usize> = (0..).filter(|c| c % 11 != 3).take(count).collect();
+        let stride = cols[count - 1] + 2;
+        let mut x = vec![f64::NAN; 700 * stride];
+        for (ch, &c) in chans.iter().zip(&cols) {
+            for (k, v) in ch.iter().enumerate() {
+                x[k * stride + c] = *v;
+            }
+        }
+        let keep: Vec<usize> = (0..700).step_by(7).collect();
+        let mut out = vec![-1.0; keep.len() * stride];
+        f.apply_rows(&x, stride, &cols, pl, pr, &keep, &mut out);
+        for (i, &k) in keep.iter().enumerate() {
+            let row = &out[i * stride..(i + 1) * stride];
+            for (c, &v) in row.iter().enumerate() {
+                match cols.iter().position(|&a| a == c) {
+                    Some(ch) => assert_eq!(v, one[ch][k], "{what}, column {c}, row {k}"),
+                    None => assert_eq!(v, -1.0, "{what}, column {c} not asked for"),
                 }
             }
         }
