@@ -8,7 +8,7 @@
 //! columns, a fit with per-joint weights (stacking `wⱼ·Rⱼ`), or the error of any parameter vector
 //! on the rows of one accumulator are all computed from the factors alone.
 
-use super::dot::dot;
+use super::dot::{self, dot};
 use nalgebra::{DMatrix, DVector};
 
 /// Rows buffered before each QR update.
@@ -194,9 +194,20 @@ fn householder_taus(
             *t = tau;
         }
         let Some(tau) = tau else { continue };
-        for l in c + 1..k {
-            let col = &mut right[(l - c - 1) * ld..(l - c - 1) * ld + m];
-            reflect(tau, v, &mut r[l * k + c], col);
+        // Later columns four at a time: their dot products with the reflector in one sweep
+        // (`dots`: `v` read once, four chains of sums side by side, each summed as `dot` sums).
+        let mut l = c + 1;
+        while l < k {
+            let g = (k - l).min(4);
+            let col = |i: usize| (l + i - c - 1) * ld;
+            let mut d = [0.0; 4];
+            let sets: [&[f64]; 4] = std::array::from_fn(|i| &right[col(i.min(g - 1))..][..m]);
+            dot::dots(v, &sets[..g], &mut d);
+            for (i, d) in d[..g].iter().enumerate() {
+                let at = col(i);
+                reflect(tau, v, &mut r[(l + i) * k + c], &mut right[at..at + m], *d);
+            }
+            l += g;
         }
     }
 }
@@ -222,9 +233,9 @@ fn reflector(r: &mut [f64], k: usize, v: &mut [f64], c: usize) -> Option<f64> {
 }
 
 /// Applies a reflection (τ, reflector `v`) to a later column: its entry `r_lc` in the reflected
-/// row of `r` and its block part `col`.
-fn reflect(tau: f64, v: &[f64], r_lc: &mut f64, col: &mut [f64]) {
-    let s = tau * (*r_lc + dot(v, col));
+/// row of `r` and its block part `col`, whose dot product with `v` is `vc`.
+fn reflect(tau: f64, v: &[f64], r_lc: &mut f64, col: &mut [f64], vc: f64) {
+    let s = tau * (*r_lc + vc);
     *r_lc -= s;
     for (y, &x) in col.iter_mut().zip(v.iter()) {
         *y -= s * x;
@@ -460,12 +471,9 @@ pub fn solve_x_after(
         let col = &mut m[(l - s0) * rows..(l - s0 + 1) * rows];
         for (k, tau) in prefix.taus.iter().enumerate() {
             if let Some(tau) = *tau {
-                reflect(
-                    tau,
-                    &prefix.q[k * rows..(k + 1) * rows],
-                    &mut r[l * c + k],
-                    col,
-                );
+                let q = &prefix.q[k * rows..(k + 1) * rows];
+                let vc = dot(q, col);
+                reflect(tau, q, &mut r[l * c + k], col, vc);
             }
         }
     }
@@ -477,7 +485,8 @@ pub fn solve_x_after(
         };
         for l in k + 1..c {
             let col = &mut right[(l - k - 1) * rows..(l - k) * rows];
-            reflect(tau, v, &mut r[l * c + k], col);
+            let vc = dot(v, col);
+            reflect(tau, v, &mut r[l * c + k], col, vc);
         }
     }
     if (0..s).any(|k| r[k * c + k].abs() < RANK_TOL) {
