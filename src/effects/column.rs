@@ -52,14 +52,30 @@ impl Effect {
     /// column. `load` is the joint's rigid-body torque (used by [`Effect::LOADED`] only; the
     /// plant's load-dependent friction is [`super::load`]).
     pub fn column(self, q: f64, dq: f64, ddq: f64, load: f64, s: &Scales) -> f64 {
+        self.column_sharing_sign(q, dq, ddq, load, s, &mut None)
+    }
+
+    /// [`Effect::column`], the (smoothed) sign of the velocity taken from `sign` or computed
+    /// into it: a state's Coulomb, Stribeck and load-dependent columns compute it once (the
+    /// same number each would compute).
+    pub fn column_sharing_sign(
+        self,
+        q: f64,
+        dq: f64,
+        ddq: f64,
+        load: f64,
+        s: &Scales,
+        sign: &mut Option<f64>,
+    ) -> f64 {
+        let mut sg = || *sign.get_or_insert_with(|| s.sign(dq));
         match self {
             Effect::Viscous => dq,
-            Effect::Coulomb => s.sign(dq),
-            Effect::Stribeck => s.sign(dq) * (-(dq / s.stribeck_v).powi(2)).exp(),
+            Effect::Coulomb => sg(),
+            Effect::Stribeck => sg() * (-(dq / s.stribeck_v).powi(2)).exp(),
             Effect::Offset => 1.0,
             Effect::Armature => ddq,
             Effect::Spring => q,
-            Effect::LoadCoulomb => s.sign(dq) * load.abs(),
+            Effect::LoadCoulomb => sg() * load.abs(),
         }
     }
 }

@@ -35,6 +35,8 @@ pub(super) struct Rows<'a> {
     batch_yb: Vec<f64>,
     batch_state: Vec<f64>,
     batch_lanes: usize,
+    /// Each joint's sign of the velocity in the state being placed ([`Rows::place`]).
+    signs: Vec<Option<f64>>,
 }
 
 impl<'a> Rows<'a> {
@@ -51,6 +53,7 @@ impl<'a> Rows<'a> {
             batch_yb: vec![0.0; LANES * layout.dof * layout.nb],
             batch_state: vec![0.0; LANES * 3 * layout.dof],
             batch_lanes: 0,
+            signs: vec![None; layout.dof],
         }
     }
 
@@ -104,9 +107,14 @@ impl<'a> Rows<'a> {
             // From locals moved into the closure: reading `self.yb` and `nb` through references
             // reloaded them for every element (the writes to `o` could alias them).
             let (yb, scale) = (&self.yb[j * nb..(j + 1) * nb], &scales[j]);
-            o.extend(active[j].iter().map(move |&c| match c.checked_sub(nb) {
-                None => yb[c],
-                Some(i) => terms[i].effect.column(q, dq, ddq, 0.0, scale),
+            let mut sign = None;
+            o.extend(active[j].iter().map(move |&c| {
+                match c.checked_sub(nb) {
+                    None => yb[c],
+                    Some(i) => terms[i]
+                        .effect
+                        .column_sharing_sign(q, dq, ddq, 0.0, scale, &mut sign),
+                }
             }));
         }
     }
@@ -171,15 +179,23 @@ impl<'a> Rows<'a> {
             out[j * nc..j * nc + nb].copy_from_slice(&self.yb[j * nb..(j + 1) * nb]);
         }
         let terms = &self.layout.terms;
+        // Each joint's sign of the velocity, computed once for its columns that need it.
+        let signs = &mut self.signs;
+        signs.iter_mut().for_each(|s| *s = None);
         for (i, t) in terms
             .iter()
             .enumerate()
             .filter(|(_, t)| !t.effect.needs_load())
         {
             let j = t.joint;
-            out[j * nc + nb + i] =
-                t.effect
-                    .column(q[j], dq[j], ddq[j], 0.0, &self.layout.scales[j]);
+            out[j * nc + nb + i] = t.effect.column_sharing_sign(
+                q[j],
+                dq[j],
+                ddq[j],
+                0.0,
+                &self.layout.scales[j],
+                &mut signs[j],
+            );
         }
         // Load-dependent columns: the first-stage model's torque from the columns just filled.
         let load = &self.layout.load;
@@ -190,9 +206,14 @@ impl<'a> Rows<'a> {
         {
             let j = t.joint;
             let tau = dot::dot(&out[j * nc..(j + 1) * nc], load);
-            out[j * nc + nb + i] =
-                t.effect
-                    .column(q[j], dq[j], ddq[j], tau, &self.layout.scales[j]);
+            out[j * nc + nb + i] = t.effect.column_sharing_sign(
+                q[j],
+                dq[j],
+                ddq[j],
+                tau,
+                &self.layout.scales[j],
+                &mut signs[j],
+            );
         }
     }
 }
