@@ -7,9 +7,9 @@
 //!   decompressing zstd or lz4 and checking every chunk's and the data section's CRC, so a file of
 //!   any length is read with the memory of one chunk. It reads from a plain `File` (no memory
 //!   map, whose resident pages would grow with the bag).
-//! - **Messages**: [`cdr`], a small decoder of the one message type (why not a CDR crate: there).
-//! - **Joints**: [`names`] matches each message's `name[]` to the arm's joints.
-//! - **Rows**: [`reader`] merges an arm split over several messages by header stamp and feeds
+//! - **Messages**: `cdr.rs`, a small decoder of the one message type (why not a CDR crate: there).
+//! - **Joints**: `names.rs` matches each message's `name[]` to the arm's joints.
+//! - **Rows**: `reader.rs` merges an arm split over several messages by header stamp and feeds
 //!   rows `t, q.., [dq..], [tau..]` into a [`crate::log::TableWriter`], which spills to a
 //!   temporary file past [`crate::log::SPILL_ROWS`] rows: memory does not grow with the bag.
 //!

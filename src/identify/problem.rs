@@ -168,7 +168,7 @@ impl Problem {
         Ok((sums[0].heldout(0), sums[1].heldout(0)))
     }
 
-    /// Blocks per training file, for [`raw_sums`].
+    /// Blocks per training file, for [`super::raw_sums`].
     pub fn raw_blocks(&self) -> &[usize] {
         &self.file_blocks
     }

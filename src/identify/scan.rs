@@ -87,7 +87,7 @@ pub struct FilterChoice {
 }
 
 /// The automatic cut-off: the spectral rule ([`crate::derivative::auto_cutoff`], largest over
-/// files) proposes the centre of a grid of octaves over a real range ([`cutoff_grid`]), and half
+/// files) proposes the centre of a grid of octaves over a real range (`cutoff_grid`), and half
 /// an octave either side of the grid's best is tried too (only the given cut-off with
 /// `--cutoff`); each cut-off with every
 /// [`Smoothing`] (regression filter at 1 or ½ of the cut-off, predictions from the filtered
