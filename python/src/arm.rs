@@ -538,6 +538,15 @@ impl Arm {
         }
     }
 
+    /// Consistent with ``==`` (equal arms have equal tables, so equal names and joint counts):
+    /// arms can key a dict or fill a set.
+    fn __hash__(&self) -> u64 {
+        use std::hash::{Hash, Hasher};
+        let mut h = std::collections::hash_map::DefaultHasher::new();
+        (self.name(), self.n(), self.is_generated()).hash(&mut h);
+        h.finish()
+    }
+
     /// Pickles as its name (generated) or its D-H text (reference dynamics).
     fn __reduce__<'py>(
         &self,

@@ -103,8 +103,12 @@ def test_arms_pickle_and_compute_the_same_after(tmp_path, puma):
         assert back == arm and repr(back) == repr(arm)
         q, dq, ddq = random_states(arm, 5, rng)
         assert np.array_equal(back.base_regressor(q, dq, ddq), arm.base_regressor(q, dq, ddq))
+        assert hash(back) == hash(arm) and len({arm, back}) == 1  # equal arms hash alike
     path.unlink()  # a pickled D-H arm carries its table, not a path
     assert pickle.loads(pickle.dumps(dynid.Arm.from_dh(Path(__file__).parents[2] / "arms" / "planar2.toml"))).dof == 2
+    # Arms key dicts: a generated arm and the same table's reference dynamics are different keys.
+    by_arm = {puma: "generated", dynid.Arm.from_dh(REPO / "arms" / "puma560.toml"): "table"}
+    assert len(by_arm) == 2 and by_arm[dynid.Arm("puma560")] == "generated"
 
 
 def test_names_and_expressions_are_attributes(puma):
