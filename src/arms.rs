@@ -70,7 +70,7 @@ impl ArmSource {
 /// `--arm` names neither a generated arm nor a readable D-H table.
 #[derive(Debug, thiserror::Error)]
 pub enum ArmError {
-    #[error("--arm: unknown arm `{name}` — {}known arms: {}; or pass the path of a D-H table (`.toml`)", .suggestion.map(|s| format!("did you mean `{s}`? ")).unwrap_or_default(), .known.join(", "))]
+    #[error("--arm: unknown arm `{name}` — {}known arms: {}; or pass the path of a D-H table (`.toml`) or a URDF (`.urdf`)", .suggestion.map(|s| format!("did you mean `{s}`? ")).unwrap_or_default(), .known.join(", "))]
     Unknown {
         name: String,
         suggestion: Option<&'static str>,
@@ -78,11 +78,18 @@ pub enum ArmError {
     },
     #[error(transparent)]
     Table(#[from] crate::dh::DhError),
+    #[error(transparent)]
+    Urdf(#[from] crate::urdf::UrdfError),
 }
 
-/// Resolves `--arm`: a path (contains `/` or `\`, or ends in `.toml`) is loaded as a D-H table;
-/// anything else must be a generated arm's name.
+/// Resolves `--arm`: a `.urdf` file is imported in memory (as `dynid import-urdf` does, with its
+/// default options; its notes and warnings are returned by [`resolve_urdf`]); another path
+/// (contains `/` or `\`, or ends in `.toml`) is loaded as a D-H table; anything else must be a
+/// generated arm's name.
 pub fn resolve(spec: &str) -> Result<ArmSource, ArmError> {
+    if let Some(imported) = resolve_urdf(spec)? {
+        return Ok(ArmSource::Table(imported.table));
+    }
     let is_path = spec.contains(['/', '\\']) || spec.ends_with(".toml");
     if is_path {
         return Ok(ArmSource::Table(crate::dh::DhTable::from_path(
@@ -97,4 +104,39 @@ pub fn resolve(spec: &str) -> Result<ArmSource, ArmError> {
             known,
         }
     })
+}
+
+/// The URDF import behind `--arm ROBOT.urdf` (`None` when `spec` is not a `.urdf` path): the
+/// D-H table, the URDF's own inertial parameters, the joint chain, notes and warnings.
+pub fn resolve_urdf(spec: &str) -> Result<Option<crate::urdf::Imported>, ArmError> {
+    let path = std::path::Path::new(spec);
+    let is_urdf = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("urdf"));
+    if !is_urdf {
+        return Ok(None);
+    }
+    let opts = crate::urdf::ImportOptions::default();
+    Ok(Some(crate::urdf::import_file(path, &opts)?))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `--arm ROBOT.urdf` is the same chain `import-urdf` writes, and a bad one names the file.
+    #[test]
+    fn a_urdf_path_is_imported_in_memory() {
+        let path = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/data/real/tiago_figaroh/tiago.urdf"
+        );
+        let opts = crate::urdf::ImportOptions::default();
+        let direct = crate::urdf::import_file(std::path::Path::new(path), &opts).unwrap();
+        let arm = resolve(path).unwrap();
+        assert_eq!(arm.dof(), direct.table.dof());
+        assert_eq!(arm.dh_table().unwrap(), direct.table);
+        let err = resolve("no/such/robot.urdf").unwrap_err().to_string();
+        assert!(err.contains("no/such/robot.urdf"), "{err}");
+    }
 }
