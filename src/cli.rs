@@ -9,6 +9,7 @@ use std::path::Path;
 use clap::{Parser, Subcommand};
 
 mod arms;
+mod bar;
 mod bench;
 mod bench_models;
 mod convert;

@@ -30,6 +30,7 @@ pub mod pack;
 pub mod paper;
 pub mod params;
 pub mod physical;
+pub mod progress;
 pub mod reference;
 pub mod report;
 pub mod signal;

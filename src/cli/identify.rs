@@ -177,10 +177,9 @@ pub fn run(args: &Args) -> Result<()> {
         ),
     };
     // On a terminal: the stage and the scan's cut-offs (or the folds) on stderr; nothing elsewhere.
-    let bar = indicatif::ProgressBar::new(0);
-    bar.enable_steady_tick(std::time::Duration::from_millis(200));
+    let (bar, progress) = super::bar::Bar::start();
     let cfg = Config {
-        progress: identify::Progress::to(bar.clone()),
+        progress,
         smoothing,
         derivative: crate::derivative::Options {
             method: args.derivative.method(),

@@ -61,13 +61,13 @@ pub mod physical;
 mod predict;
 mod prepare;
 mod problem;
-pub mod progress;
 mod regress;
 mod rows;
 mod scan;
 mod select;
 pub mod synth;
 
+pub use crate::progress::Progress;
 pub use evaluate::{raw_sums, Errors, Judged, ModelResult, Prediction, RawSums, StateErrors};
 pub use layout::Layout;
 pub use load_stage::LoadModel;
@@ -75,7 +75,6 @@ pub use outcome::{Estimated, FileInfo, Outcome, StepRow, Undetermined};
 pub use predict::{BeforeAfter, Predictions, Series};
 pub use prepare::{PrepCache, Prepared, Smoothing};
 pub use problem::Problem;
-pub use progress::Progress;
 pub use regress::KEEP_RATE_PER_CUTOFF;
 pub use scan::{
     choose_cutoff, scan_pieces, scan_sampling, CutoffTrial, FilterChoice, ScanSampling,

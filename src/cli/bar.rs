@@ -1,0 +1,45 @@
+//! The terminal's progress bar: an [`indicatif`] bar behind the library's
+//! [`Observer`](crate::progress::Observer) (drawn on stderr when it is a terminal, hidden elsewhere).
+
+use std::sync::Arc;
+
+use indicatif::{ProgressBar, ProgressStyle};
+
+use crate::progress::{Observer, Progress};
+
+/// A spinner-and-count bar for the stages of long work.
+pub struct Bar(pub ProgressBar);
+
+impl Bar {
+    /// A bar that ticks while a stage runs, and the [`Progress`] that reports to it.
+    pub fn start() -> (ProgressBar, Progress) {
+        let bar = ProgressBar::new(0);
+        bar.enable_steady_tick(std::time::Duration::from_millis(200));
+        let progress = Progress::to(Arc::new(Bar(bar.clone())));
+        (bar, progress)
+    }
+}
+
+impl Observer for Bar {
+    fn stage(&self, msg: &str, len: u64) {
+        let template = if len == 0 {
+            "{spinner} {msg} [{elapsed}]"
+        } else {
+            "{spinner} {msg} {pos}/{len} [{elapsed}]"
+        };
+        self.0.set_length(len);
+        self.0.set_position(0);
+        if let Ok(style) = ProgressStyle::with_template(template) {
+            self.0.set_style(style);
+        }
+        self.0.set_message(msg.to_string());
+    }
+
+    fn grow(&self, n: u64) {
+        self.0.inc_length(n);
+    }
+
+    fn advance(&self, n: u64) {
+        self.0.inc(n);
+    }
+}
