@@ -15,7 +15,6 @@
 //! assert!((r.best[0] - 0.5).abs() < 0.1 && (r.best[1] + 1.0).abs() < 0.1);
 //! ```
 
-use indicatif::ProgressBar;
 use nalgebra::{DMatrix, SymmetricEigen};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -78,7 +77,7 @@ pub fn minimize<F>(
     cfg: &GaConfig,
     bounds: &[(f64, f64)],
     cost: F,
-    progress: Option<&ProgressBar>,
+    progress: Option<&crate::progress::Progress>,
 ) -> GaResult
 where
     F: Fn(&[f64]) -> f64 + Sync,
@@ -152,7 +151,7 @@ where
         evaluations += pop;
         history.push(costs[argmin(&costs)]);
         if let Some(pb) = progress {
-            pb.inc(1);
+            pb.step();
         }
     }
     let best = argmin(&costs);

@@ -43,3 +43,51 @@ impl Observer for Bar {
         self.0.inc(n);
     }
 }
+
+/// One bar per stage, each kept on screen when the next begins (the paper's GA, iterations, noise study).
+pub struct Bars(std::sync::Mutex<Option<ProgressBar>>);
+
+impl Bars {
+    /// The [`Progress`] that draws a new bar at every stage.
+    pub fn progress() -> Progress {
+        Progress::to(Arc::new(Bars(std::sync::Mutex::new(None))))
+    }
+
+    fn with(&self, f: impl FnOnce(&ProgressBar)) {
+        if let Ok(guard) = self.0.lock() {
+            if let Some(bar) = guard.as_ref() {
+                f(bar);
+            }
+        }
+    }
+}
+
+impl Observer for Bars {
+    fn stage(&self, msg: &str, len: u64) {
+        let bar = ProgressBar::new(len);
+        let style =
+            ProgressStyle::with_template("{prefix:>16} [{bar:36}] {pos}/{len} {elapsed_precise}")
+                .unwrap_or_else(|_| ProgressStyle::default_bar());
+        bar.set_style(style.progress_chars("=> "));
+        bar.set_prefix(msg.to_string());
+        if let Ok(mut guard) = self.0.lock() {
+            if let Some(done) = guard.replace(bar) {
+                done.finish();
+            }
+        }
+    }
+
+    fn grow(&self, n: u64) {
+        self.with(|b| b.inc_length(n));
+    }
+
+    fn advance(&self, n: u64) {
+        self.with(|b| b.inc(n));
+    }
+}
+
+impl Drop for Bars {
+    fn drop(&mut self) {
+        self.with(|b| b.finish());
+    }
+}

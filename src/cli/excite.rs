@@ -75,7 +75,8 @@ pub fn run(args: &Args) -> Result<()> {
         generations: args.generations,
         ..GaConfig::default()
     };
-    let pb = indicatif::ProgressBar::new(ga.generations as u64);
+    let (bar, pb) = super::bar::Bar::start();
+    pb.stage("generations", ga.generations as u64);
     let doc = match args.kind {
         Kind::Logistic => {
             if model.dof() != 2 || model.nb() != 6 {
@@ -129,7 +130,7 @@ pub fn run(args: &Args) -> Result<()> {
             })
         }
     };
-    pb.finish_and_clear();
+    bar.finish_and_clear();
     let text = serde_json::to_string_pretty(&doc)?;
     write_output(args.out.as_deref(), |w| writeln!(w, "{text}"))
 }

@@ -41,7 +41,11 @@ pub fn run(args: &Args) -> Result<()> {
         "the built-in arm `planar2` is missing: arms/planar2.toml must exist when dynid is built",
     )?;
     let mut cfg = PaperConfig {
-        progress: !args.quiet,
+        progress: if args.quiet {
+            crate::progress::Progress::silent()
+        } else {
+            super::bar::Bars::progress()
+        },
         ..PaperConfig::default()
     };
     if args.full {

@@ -26,7 +26,7 @@ use std::f64::consts::PI;
 use std::path::Path;
 use std::time::Instant;
 
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use crate::progress::Progress;
 use serde::Serialize;
 
 use crate::control::{Ctc, ModelBased, Pd, Rhftc, RhftcGains, Usage};
@@ -97,9 +97,9 @@ pub struct PaperConfig {
     pub noise_runs: usize,
     pub noise_quant_bits: Vec<Option<u32>>,
     pub noise_torque_pct: Vec<f64>,
-    /// Show progress bars.
+    /// Where to report progress (each stage: the GAs, the iterations, the noise study).
     #[serde(skip)]
-    pub progress: bool,
+    pub progress: Progress,
 }
 
 impl Default for PaperConfig {
@@ -131,7 +131,7 @@ impl Default for PaperConfig {
             noise_runs: 50,
             noise_quant_bits: vec![None, Some(12), Some(14), Some(16), Some(18), Some(20)],
             noise_torque_pct: vec![0.0, 0.1, 0.5, 1.0, 2.0, 5.0],
-            progress: true,
+            progress: Progress::silent(),
         }
     }
 }
@@ -145,18 +145,10 @@ pub const PAPER_ITER3: [f64; 6] = [1.991, 2.000, 0.002, 0.993, 1.000, 0.000];
 /// The paper's maximum tracking error per iteration, rad.
 pub const PAPER_TRACKING: [f64; 3] = [0.6, 0.15, 0.0];
 
-fn bar(len: u64, prefix: &str, show: bool) -> ProgressBar {
-    let pb = if show {
-        ProgressBar::new(len)
-    } else {
-        ProgressBar::with_draw_target(Some(len), ProgressDrawTarget::hidden())
-    };
-    let style =
-        ProgressStyle::with_template("{prefix:>16} [{bar:36}] {pos}/{len} {elapsed_precise}")
-            .unwrap_or_else(|_| ProgressStyle::default_bar());
-    pb.set_style(style.progress_chars("=> "));
-    pb.set_prefix(prefix.to_string());
-    pb
+/// A new stage of the run on `progress`, returned for its steps.
+fn bar(len: u64, prefix: &str, progress: &Progress) -> Progress {
+    progress.stage(prefix, len);
+    progress.clone()
 }
 
 impl PaperConfig {
@@ -291,7 +283,7 @@ pub fn iterate(
     design: &LogisticDesign,
     law: Law,
     estimator: IterEstimator,
-    pb: &ProgressBar,
+    pb: &Progress,
 ) -> Result<(Vec<IterRecord>, Vec<[SimLog; 2]>), PaperError> {
     let plant = Plant::new(model, cfg.theta_true.clone(), None);
     let mut theta = cfg.theta0.clone();
@@ -360,7 +352,7 @@ pub fn iterate(
                 max_tracking_error: log.max_tracking_error(),
             });
             pair.push(log);
-            pb.inc(1);
+            pb.step();
         }
         let (b, a) = (
             pair.pop().unwrap_or_default(),
@@ -376,7 +368,7 @@ pub fn iterate(
 fn fourier_comparison(
     model: &dyn Model,
     cfg: &PaperConfig,
-    show: bool,
+    show: &Progress,
 ) -> Result<(FourierOut, SimLog), PaperError> {
     let geometry = vec![link1_length(model), cfg.link2_length];
     let mut problem = FourierProblem {
@@ -397,7 +389,6 @@ fn fourier_comparison(
         ..cfg.ga
     };
     let r = minimize(&ga, &problem.bounds(), |x| problem.cost(x), Some(&pb));
-    pb.finish();
     problem.ts = cfg.ts;
     let mut traj = problem.trajectory(&r.best);
     let ev = problem.evaluate(&traj);
@@ -530,7 +521,7 @@ pub fn run(model: &dyn Model, cfg: &PaperConfig) -> Result<(PaperResults, Traces
             nb: model.nb(),
         });
     }
-    let show = cfg.progress;
+    let show = &cfg.progress;
     let mut timings: Vec<(String, f64)> = Vec::new();
     let mut lap = Instant::now();
     let mut tick = |name: &str| {
@@ -607,11 +598,10 @@ fn design_by_ga(
     model: &dyn Model,
     cfg: &PaperConfig,
     problem: &LogisticProblem,
-    show: bool,
+    show: &Progress,
 ) -> Result<(GaOut, LogisticDesign), PaperError> {
     let pb = bar(cfg.ga.generations as u64, "GA Logistic", show);
     let r = minimize(&cfg.ga, &problem.bounds(), |x| problem.cost(x), Some(&pb));
-    pb.finish();
     let best = check(problem, &r.best)?;
     let design = &best.design;
     let paper_design = check(problem, &PAPER_TABLE3)?;
@@ -657,7 +647,7 @@ fn iterate_variants(
     problem: &LogisticProblem,
     design: &LogisticDesign,
     paper_design: &LogisticDesign,
-    show: bool,
+    show: &Progress,
 ) -> Result<Variants, PaperError> {
     let pb = bar((8 * cfg.iterations) as u64, "iterations", show);
     let run = |d: &LogisticDesign, law: Law, est: IterEstimator| {
@@ -667,7 +657,6 @@ fn iterate_variants(
     let (corrected, logs_corrected) = run(design, Law::Rhftc, IterEstimator::Corrected)?;
     let (ctc, _) = run(design, Law::Ctc, IterEstimator::Map)?;
     let (paper_design, _) = run(paper_design, Law::Rhftc, IterEstimator::Map)?;
-    pb.finish();
     Ok(Variants {
         rhftc,
         corrected,
@@ -755,7 +744,7 @@ fn noise_study(
     problem: &LogisticProblem,
     design: &LogisticDesign,
     logs_corrected: &[[SimLog; 2]],
-    show: bool,
+    show: &Progress,
 ) -> Result<noise::NoiseStudy, PaperError> {
     let last = logs_corrected
         .last()
@@ -792,7 +781,6 @@ fn noise_study(
         show,
     );
     let noise = noise::run(model, &steps, &cfg.theta_true, &ncfg, &pb);
-    pb.finish();
     Ok(noise)
 }
 

@@ -9,7 +9,7 @@
 //! differences come from the derivative estimates alone. Resting joints get zero derivatives for
 //! every estimator (the experiment says they rest).
 
-use indicatif::ProgressBar;
+use crate::progress::Progress;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
@@ -219,7 +219,7 @@ pub fn run(
     steps: &[StepData],
     theta_true: &[f64],
     cfg: &NoiseConfig,
-    pb: &ProgressBar,
+    pb: &Progress,
 ) -> NoiseStudy {
     let dof = model.dof();
     let rms: Vec<Vec<f64>> = steps
@@ -294,7 +294,7 @@ pub fn run(
                 failed: cfg.runs - ok.len(),
             });
         }
-        pb.inc(1);
+        pb.step();
     }
     NoiseStudy {
         config: cfg.clone(),

@@ -289,7 +289,7 @@ fn dfki_leave_one_out() {
         .map(|r| Log::open(&d.join(format!("run_{r}.csv.gz")), Some(2)).unwrap())
         .collect();
     // Progress reports every fold done.
-    let progress = identify::Progress::to(std::sync::Arc::new(Folds::default()));
+    let progress = identify::Progress::to(std::sync::Arc::new(Folds));
     let cfg = Config {
         progress: progress.clone(),
         ..Config::default()

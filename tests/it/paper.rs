@@ -13,7 +13,6 @@ use dynid::paper::{iterate, logistic_problem, IterEstimator, Law, PaperConfig, P
 use dynid::sim::{simulate, simulate_from, Plant, SimConfig, SimError};
 use dynid::trajectory::logistic::{JointMotion, Logistic, LogisticJoint};
 use dynid::trajectory::{sample, Motion};
-use indicatif::ProgressBar;
 use rand::Rng;
 
 use super::common::{dynid, planar2_phi, rng};
@@ -26,7 +25,7 @@ fn planar2() -> &'static dyn Model {
 
 fn quiet_cfg() -> PaperConfig {
     PaperConfig {
-        progress: false,
+        progress: dynid::progress::Progress::silent(),
         ..PaperConfig::default()
     }
 }
@@ -357,7 +356,7 @@ fn iteration_converges_below_the_papers_0_01_after_three_iterations() {
     };
     let problem = logistic_problem(model, &cfg, cfg.ts);
     let design = problem.design(&PAPER_TABLE3).unwrap();
-    let pb = ProgressBar::hidden();
+    let pb = dynid::progress::Progress::silent();
     let (paper, _) = iterate(
         model,
         &cfg,
