@@ -1,13 +1,13 @@
-"""Checks the source layout rules of issue 16 and prints what breaks them.
+"""Checks the workspace's source layout rules and prints what breaks them.
 
-- no file under src/ over 900 lines (test-only files — `tests.rs`, `*_tests.rs` — are exempt);
-- no function over 120 lines outside `#[cfg(test)]` modules (report prose may be listed in ALLOW);
-- no cycle between the top-level modules of src/ (`crate::a` naming `crate::b` in either direction,
-  counting every `crate::x` path in code, not in comments).
+In every crate of the workspace (each `Cargo.toml` with a `src/` beside it):
+- no file over 900 lines (test-only files — `tests.rs`, `*_tests.rs` — are exempt);
+- no function over 120 lines outside `#[cfg(test)]` code;
+- no cycle between files: a file names another through `crate::`, `super::` or `self::` paths (in `use`
+  trees or in code, not in comments or tests), each path resolved to the deepest module file it reaches (a
+  `mod.rs` that re-exports its children with bare `pub use child::X` is their facade, not a dependency).
 
-    python3 scripts/structure.py                   # exit 1 and a list when a rule is broken
-    python3 scripts/structure.py --warn-functions  # long functions listed, not counted (CI, until
-                                                   # the last ones are split: see docs/ARCHITECTURE.md)
+    python3 scripts/structure.py    # exit 1 and the offenders when a rule is broken
 
 Brace counting is enough for this code base: string literals with unbalanced braces are not used in
 function bodies that matter here, and a miscount shows up as an absurd length that one would look at.
@@ -19,13 +19,25 @@ import re
 import sys
 from pathlib import Path
 
-SRC = Path(__file__).resolve().parents[1] / "src"
+ROOT = Path(__file__).resolve().parents[1]
 MAX_FILE = 900
 MAX_FN = 120
-ALLOW: set[str] = set()  # "path::fn" of prose-only report functions allowed to be longer
 
-FN = re.compile(r"^\s*(?:pub(?:\([^)]*\))?\s+)?(?:const\s+)?(?:unsafe\s+)?fn\s+(\w+)")
-CRATE = re.compile(r"\bcrate::(\w+)")
+FN = re.compile(r"^\s*(?:pub(?:\([^)]*\))?\s+)?(?:const\s+)?(?:async\s+)?(?:unsafe\s+)?fn\s+(\w+)")
+PATH = re.compile(r"\b(crate|super|self)((?:\s*::\s*\w+)+)")
+USE = re.compile(r"^\s*(?:pub(?:\([^)]*\))?\s+)?use\s+([^;]*);", re.S | re.M)
+
+
+def crates() -> list[Path]:
+    """The `src/` directories of the workspace's crates."""
+    out = []
+    for toml in sorted(ROOT.glob("**/Cargo.toml")):
+        rel = toml.relative_to(ROOT).parts
+        if any(p in {"target", ".venv", "node_modules"} or p.startswith(".") for p in rel):
+            continue
+        if (toml.parent / "src").is_dir():
+            out.append(toml.parent / "src")
+    return out
 
 
 def strip_comment(line: str) -> str:
@@ -33,25 +45,34 @@ def strip_comment(line: str) -> str:
     return line if i < 0 else line[:i]
 
 
-def top_module(path: Path) -> str:
-    rel = path.relative_to(SRC).parts
-    return rel[0].removesuffix(".rs") if rel else ""
+def module_of(src: Path, path: Path) -> tuple[str, ...]:
+    parts = list(path.relative_to(src).parts)
+    last = parts.pop()
+    if last not in {"lib.rs", "main.rs", "mod.rs"}:
+        parts.append(last.removesuffix(".rs"))
+    return tuple(parts)
 
 
 def is_test_file(path: Path) -> bool:
     return path.name == "tests.rs" or path.name.endswith("_tests.rs")
 
 
-def long_functions(path: Path, lines: list[str]) -> list[str]:
-    out = []
+def scan(rel: str, lines: list[str]) -> tuple[list[str], list[str]]:
+    """Functions over MAX_FN lines, and the code lines outside `#[cfg(test)]` items."""
+    long = []
+    code = []
     depth = 0
-    test_depth = None  # brace depth at which a #[cfg(test)] module opened
+    test_depth = None  # brace depth at which a #[cfg(test)] item opened
     pending_test = False
     open_fns: list[tuple[str, int, int]] = []  # (name, start line, depth before its body)
     for n, raw in enumerate(lines, 1):
         line = strip_comment(raw)
         if "#[cfg(test)]" in line:
             pending_test = True
+        if test_depth is None and not pending_test:
+            code.append(line)
+        elif pending_test and test_depth is None and line.strip().endswith(";"):
+            pending_test = False  # `#[cfg(test)] mod tests;` or a test-only `use`
         m = FN.match(line)
         if m and test_depth is None:
             open_fns.append((m.group(1), n, depth))
@@ -68,54 +89,109 @@ def long_functions(path: Path, lines: list[str]) -> list[str]:
                 while open_fns and depth == open_fns[-1][2]:
                     name, start, _ = open_fns.pop()
                     length = n - start + 1
-                    key = f"{path.relative_to(SRC.parent)}::{name}"
-                    if length > MAX_FN and key not in ALLOW:
-                        out.append(f"{key}: function of {length} lines (max {MAX_FN}), line {start}")
+                    if length > MAX_FN:
+                        long.append(f"{rel}::{name}: function of {length} lines (max {MAX_FN}), line {start}")
         if m and "{" not in line and line.rstrip().endswith(";") and open_fns and open_fns[-1][1] == n:
             open_fns.pop()  # a declaration without a body (trait method)
-    return out
+    return long, code
+
+
+def expand(tree: str) -> list[str]:
+    """`a::{b, c::{d, e}}` → `a::b`, `a::c::d`, `a::c::e` (whitespace removed, renames dropped)."""
+    tree = re.sub(r"\s+", "", re.sub(r"\s+as\s+\w+", "", tree))
+    i = tree.find("{")
+    if i < 0:
+        return [tree]
+    prefix, body = tree[:i], tree[i + 1 : tree.rfind("}")]
+    parts, level, cur = [], 0, ""
+    for ch in body:
+        if ch == "," and level == 0:
+            parts.append(cur)
+            cur = ""
+            continue
+        level += ch == "{"
+        level -= ch == "}"
+        cur += ch
+    parts.append(cur)
+    return [x for p in parts if p for x in expand(prefix + p)]
+
+
+def resolve(me: tuple[str, ...], path: list[str], modules: set[tuple[str, ...]]) -> tuple[str, ...] | None:
+    """The deepest module that `path` (starting with crate/super/self or a child's name) reaches."""
+    head, rest = path[0], path[1:]
+    if head == "crate":
+        base: tuple[str, ...] = ()
+    elif head in {"self", "super"}:
+        base = me
+        while head == "super":
+            base = base[:-1]
+            head, rest = (rest[0], rest[1:]) if rest else ("", [])
+        if head not in {"", "super", "self"}:
+            rest = [head, *rest]
+    else:
+        base, rest = me, path
+    for seg in rest:
+        if seg == "self":
+            continue
+        if base + (seg,) in modules:
+            base = base + (seg,)
+        else:
+            break
+    return base
 
 
 def main() -> int:
-    warn_functions = "--warn-functions" in sys.argv[1:]
     problems: list[str] = []
-    warnings: list[str] = []
-    edges: dict[str, set[str]] = {}
-    for path in sorted(SRC.rglob("*.rs")):
-        text = path.read_text(encoding="utf-8")
-        lines = text.splitlines()
-        rel = path.relative_to(SRC.parent)
-        if len(lines) > MAX_FILE and not is_test_file(path):
-            problems.append(f"{rel}: {len(lines)} lines (max {MAX_FILE})")
-        (warnings if warn_functions else problems).extend(long_functions(path, lines))
-        me = top_module(path)
-        for line in lines:
-            for other in CRATE.findall(strip_comment(line)):
-                if other != me and ((SRC / f"{other}.rs").exists() or (SRC / other).is_dir()):
-                    edges.setdefault(me, set()).add(other)
-    # Cycles between top-level modules (depth-first search).
-    state: dict[str, int] = {}
-    stack: list[str] = []
+    for src in crates():
+        files = {module_of(src, p): p for p in sorted(src.rglob("*.rs"))}
+        modules = set(files)
+        edges: dict[tuple[str, ...], set[tuple[str, ...]]] = {}
+        for me, path in files.items():
+            rel = str(path.relative_to(ROOT))
+            lines = path.read_text(encoding="utf-8").splitlines()
+            if len(lines) > MAX_FILE and not is_test_file(path):
+                problems.append(f"{rel}: {len(lines)} lines (max {MAX_FILE})")
+            long, code = scan(rel, lines)
+            problems.extend(long)
+            text = "\n".join(code)
+            refs: list[list[str]] = []
+            for tree in USE.findall(text):
+                for p in expand(tree):
+                    segs = [s for s in p.split("::") if s and s != "*"]
+                    if segs and segs[0] in {"crate", "super", "self"}:
+                        refs.append(segs)
+            body = USE.sub("", text)
+            for head, tail in PATH.findall(body):
+                refs.append([head, *[s for s in re.sub(r"\s+", "", tail).split("::") if s]])
+            for segs in refs:
+                target = resolve(me, segs, modules)
+                if target is not None and target != me and target in modules:
+                    edges.setdefault(me, set()).add(target)
 
-    def visit(m: str) -> None:
-        state[m] = 1
-        stack.append(m)
-        for o in sorted(edges.get(m, ())):
-            if state.get(o) == 1:
-                problems.append("module cycle: " + " -> ".join(stack[stack.index(o) :] + [o]))
-            elif o not in state:
-                visit(o)
-        stack.pop()
-        state[m] = 2
+        def name(m: tuple[str, ...], src: Path = src) -> str:
+            return str(files[m].relative_to(ROOT))
 
-    for m in sorted(edges):
-        if m not in state:
-            visit(m)
-    for w in warnings:
-        print(f"warning: {w}")
+        state: dict[tuple[str, ...], int] = {}
+        stack: list[tuple[str, ...]] = []
+
+        def visit(m: tuple[str, ...]) -> None:
+            state[m] = 1
+            stack.append(m)
+            for o in sorted(edges.get(m, ())):
+                if state.get(o) == 1:
+                    cycle = stack[stack.index(o) :] + [o]
+                    problems.append("file cycle: " + " -> ".join(name(c) for c in cycle))
+                elif o not in state:
+                    visit(o)
+            stack.pop()
+            state[m] = 2
+
+        for m in sorted(edges):
+            if m not in state:
+                visit(m)
     for p in problems:
         print(p)
-    print(f"structure: {len(problems)} problem(s) in {SRC}")
+    print(f"structure: {len(problems)} problem(s) in {len(crates())} crates")
     return 1 if problems else 0
 
 

@@ -47,35 +47,59 @@ impl Scales {
     }
 }
 
+/// One joint's state as its effect columns read it. The (smoothed) velocity sign is computed on
+/// first use and shared by every column of the state (Coulomb, Stribeck, load-dependent).
+#[derive(Debug, Clone)]
+pub struct JointState {
+    pub q: f64,
+    pub dq: f64,
+    pub ddq: f64,
+    scales: Scales,
+    sign: std::cell::Cell<Option<f64>>,
+}
+
+impl JointState {
+    pub fn new(q: f64, dq: f64, ddq: f64, scales: &Scales) -> Self {
+        JointState {
+            q,
+            dq,
+            ddq,
+            scales: *scales,
+            sign: std::cell::Cell::new(None),
+        }
+    }
+
+    /// The smoothed sign of the velocity ([`Scales::sign`]).
+    pub fn sign(&self) -> f64 {
+        match self.sign.get() {
+            Some(s) => s,
+            None => {
+                let s = self.scales.sign(self.dq);
+                self.sign.set(Some(s));
+                s
+            }
+        }
+    }
+}
+
 impl Effect {
     /// The torque one unit of this effect adds at a joint in state `(q, q̇, q̈)`: the regressor
     /// column. `load` is the joint's rigid-body torque (used by [`Effect::LOADED`] only; the
     /// plant's load-dependent friction is [`super::load`]).
     pub fn column(self, q: f64, dq: f64, ddq: f64, load: f64, s: &Scales) -> f64 {
-        self.column_sharing_sign(q, dq, ddq, load, s, &mut None)
+        self.column_at(&JointState::new(q, dq, ddq, s), load)
     }
 
-    /// [`Effect::column`], the (smoothed) sign of the velocity taken from `sign` or computed
-    /// into it: a state's Coulomb, Stribeck and load-dependent columns compute it once (the
-    /// same number each would compute).
-    pub fn column_sharing_sign(
-        self,
-        q: f64,
-        dq: f64,
-        ddq: f64,
-        load: f64,
-        s: &Scales,
-        sign: &mut Option<f64>,
-    ) -> f64 {
-        let mut sg = || *sign.get_or_insert_with(|| s.sign(dq));
+    /// [`Effect::column`] at a [`JointState`] that several columns share.
+    pub fn column_at(self, st: &JointState, load: f64) -> f64 {
         match self {
-            Effect::Viscous => dq,
-            Effect::Coulomb => sg(),
-            Effect::Stribeck => sg() * (-(dq / s.stribeck_v).powi(2)).exp(),
+            Effect::Viscous => st.dq,
+            Effect::Coulomb => st.sign(),
+            Effect::Stribeck => st.sign() * (-(st.dq / st.scales.stribeck_v).powi(2)).exp(),
             Effect::Offset => 1.0,
-            Effect::Armature => ddq,
-            Effect::Spring => q,
-            Effect::LoadCoulomb => sg() * load.abs(),
+            Effect::Armature => st.ddq,
+            Effect::Spring => st.q,
+            Effect::LoadCoulomb => st.sign() * load.abs(),
         }
     }
 }

@@ -36,7 +36,7 @@ mod merges;
 #[cfg(test)]
 mod tests;
 
-pub use column::{sign, Scales};
+pub use column::{sign, JointState, Scales};
 pub use load::{load, unload};
 pub use merges::structural_merges;
 

@@ -9,10 +9,21 @@
 //! column's change with the angle is below a 0.3 %-noise torque sensor), a prismatic one when it
 //! spans less than [`STILL_M`].
 
-use super::outcome::Undetermined;
+use serde::Serialize;
+
 use super::prepare::Prepared;
 use super::problem::Problem;
 use crate::dh::{DhTable, JointKind};
+
+/// A parameter the training data leave free (see [`torque_sigma`]).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Undetermined {
+    pub name: String,
+    pub value: f64,
+    pub std: f64,
+    /// How far a one-σ change moves the prediction, in units of the fit's residual.
+    pub torque_sigma: f64,
+}
 
 /// Least span of a revolute joint's position over the training data (rad): 0.05 rad ≈ 2.9°.
 pub const STILL_RAD: f64 = 0.05;

@@ -50,6 +50,7 @@
 //!    residual autocorrelation that filtering creates), reported also as %σ = 100·σ/|θ|.
 
 pub mod base;
+mod columns;
 mod dot;
 mod evaluate;
 pub mod identifiability;
@@ -62,6 +63,7 @@ mod predict;
 mod prepare;
 mod problem;
 mod regress;
+mod row_table;
 mod rows;
 mod scan;
 mod select;
@@ -69,9 +71,10 @@ pub mod synth;
 
 pub use crate::progress::Progress;
 pub use evaluate::{raw_sums, Errors, Judged, ModelResult, Prediction, RawSums, StateErrors};
+pub use identifiability::Undetermined;
 pub use layout::Layout;
 pub use load_stage::LoadModel;
-pub use outcome::{Estimated, FileInfo, Outcome, StepRow, Undetermined};
+pub use outcome::{Estimated, FileInfo, Outcome, StepRow};
 pub use predict::{BeforeAfter, Predictions, Series};
 pub use prepare::{PrepCache, Prepared, Smoothing};
 pub use problem::Problem;
@@ -89,7 +92,7 @@ use crate::derivative;
 use crate::effects::{EffectsSpec, Term};
 use crate::log::Log;
 use base::BaseModel;
-use layout::make_layout;
+use columns::make_layout;
 use load_stage::load_stage;
 
 /// Fewest samples per file.
@@ -290,12 +293,12 @@ pub fn run_prepared(
     val: Option<&Prepared>,
     cfg: &Config,
 ) -> Result<Outcome, IdentifyError> {
-    let grids = rows::GridBaseCache::default();
+    let grids = row_table::GridBaseCache::default();
     run_prepared_with(arm, base, table, train, val, cfg, &grids)
 }
 
 /// [`run_prepared`], the files' states and base regressor taken from `grids` where it holds
-/// them. When the files' rows fit in [`rows::ROW_TABLE_BYTES`] they are evaluated once into
+/// them. When the files' rows fit in [`row_table::ROW_TABLE_BYTES`] they are evaluated once into
 /// tables that the regression and the judging passes read (the numbers of rows evaluated pass
 /// by pass).
 fn run_prepared_with(
@@ -305,10 +308,10 @@ fn run_prepared_with(
     train: &[Prepared],
     val: Option<&Prepared>,
     cfg: &Config,
-    grids: &rows::GridBaseCache,
+    grids: &row_table::GridBaseCache,
 ) -> Result<Outcome, IdentifyError> {
     let (layout, declared, searched, merged) = make_layout(base, table, train, cfg);
-    let tabled = rows::RowTable::attach(base, &layout, train, grids);
+    let tabled = row_table::RowTable::attach(base, &layout, train, grids);
     let train = tabled.as_deref().unwrap_or(train);
     let mut problem = Problem::build(base, layout, train, cfg.blocks);
     let rigid = problem.subset(&[]);
@@ -325,7 +328,7 @@ fn run_prepared_with(
     let selected = load_stage(base, train, cfg, first)?;
     // The judging passes read the final layout's rows (the load stage's, if it rebuilt).
     let all: Vec<Prepared> = train.iter().chain(val).cloned().collect();
-    let retabled = rows::RowTable::attach(base, &selected.problem.layout, &all, grids);
+    let retabled = row_table::RowTable::attach(base, &selected.problem.layout, &all, grids);
     let (train, val) = match &retabled {
         Some(t) => (&t[..train.len()], t.get(train.len()).or(val)),
         None => (train, val),

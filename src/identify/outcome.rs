@@ -4,10 +4,12 @@
 use serde::Serialize;
 
 use super::base::BaseModel;
+use super::columns::Merged;
 use super::evaluate::{
     raw_sums_sampled, Errors, Judged, ModelResult, Prediction, Sampling, StateErrors,
 };
-use super::layout::{Layout, Merged};
+use super::identifiability::Undetermined;
+use super::layout::Layout;
 use super::load_stage::{load_model, LoadModel};
 use super::ls;
 use super::physical::{self, Physical};
@@ -127,16 +129,6 @@ pub struct Outcome {
     /// Parameters whose one-σ uncertainty moves the prediction by more than the residual
     /// ([`super::identifiability::torque_sigma`]).
     pub undetermined: Vec<Undetermined>,
-}
-
-/// A parameter the training data leave free (see [`super::identifiability::torque_sigma`]).
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct Undetermined {
-    pub name: String,
-    pub value: f64,
-    pub std: f64,
-    /// How far a one-σ change moves the prediction, in units of the fit's residual.
-    pub torque_sigma: f64,
 }
 
 /// Stage 7: the outcome of an identification whose effects are selected (`selected`, the
@@ -327,19 +319,12 @@ impl Models {
         })
     }
 
-    /// Every model judged against the measured torque: the rigid (`before`) and the final
-    /// (`after`) model and the step table.
-    fn judge(
-        &self,
-        base: &BaseModel,
-        problem: &Problem,
-        train: &[Prepared],
-        val: Option<&Prepared>,
-        consistent: Option<(&[usize], &[f64])>,
-    ) -> Result<Judgement, IdentifyError> {
-        let layout = &problem.layout;
-        // Models of the same columns are the same fit (the final model is the step table's last
-        // row): each is judged once, `slot[m]` being model `m`'s place among those judged.
+    /// The fits to judge, each set of columns once (the final model is the step table's last
+    /// row), then the consistent estimate if any; and each model's place among them.
+    fn to_judge<'s>(
+        &'s self,
+        consistent: Option<(&'s [usize], &'s [f64])>,
+    ) -> (Vec<Judged<'s>>, Vec<usize>) {
         let mut judged: Vec<Judged> = Vec::new();
         let mut slot: Vec<usize> = Vec::new();
         for (m, f) in self.fitted.iter().enumerate() {
@@ -364,6 +349,54 @@ impl Models {
                 loo: None,
             });
         }
+        (judged, slot)
+    }
+
+    /// The step table: rigid, then each added effect (`result(m)` judges model `m`).
+    fn step_rows(
+        &self,
+        before: &ModelResult,
+        result: impl Fn(usize) -> ModelResult,
+    ) -> Vec<StepRow> {
+        let mut steps = vec![StepRow {
+            model: "rigid".into(),
+            added: None,
+            train: before.train.clone(),
+            heldout_rms: before.heldout_rms,
+            validation: before.validation.clone(),
+        }];
+        for (i, add) in self.added.iter().enumerate() {
+            let m = result(2 + i);
+            steps.push(StepRow {
+                model: format!(
+                    "rigid + {}",
+                    self.terms[2 + i]
+                        .iter()
+                        .map(Term::label)
+                        .collect::<Vec<_>>()
+                        .join(" + ")
+                ),
+                added: Some(add.iter().map(Term::label).collect::<Vec<_>>().join(", ")),
+                train: m.train,
+                heldout_rms: m.heldout_rms,
+                validation: m.validation,
+            });
+        }
+        steps
+    }
+
+    /// Every model judged against the measured torque: the rigid (`before`) and the final
+    /// (`after`) model and the step table.
+    fn judge(
+        &self,
+        base: &BaseModel,
+        problem: &Problem,
+        train: &[Prepared],
+        val: Option<&Prepared>,
+        consistent: Option<(&[usize], &[f64])>,
+    ) -> Result<Judgement, IdentifyError> {
+        let layout = &problem.layout;
+        let (judged, slot) = self.to_judge(consistent);
         let blocks = Some(problem.raw_blocks());
         // When the prediction is from the filtered rows, the rigid, final and consistent
         // models are judged from the estimated states too (the same pass over the rows).
@@ -458,30 +491,7 @@ impl Models {
                 x: x.to_vec(),
             }
         });
-        let mut steps = vec![StepRow {
-            model: "rigid".into(),
-            added: None,
-            train: before.train.clone(),
-            heldout_rms: before.heldout_rms,
-            validation: before.validation.clone(),
-        }];
-        for (i, add) in self.added.iter().enumerate() {
-            let m = result(2 + i);
-            steps.push(StepRow {
-                model: format!(
-                    "rigid + {}",
-                    self.terms[2 + i]
-                        .iter()
-                        .map(Term::label)
-                        .collect::<Vec<_>>()
-                        .join(" + ")
-                ),
-                added: Some(add.iter().map(Term::label).collect::<Vec<_>>().join(", ")),
-                train: m.train,
-                heldout_rms: m.heldout_rms,
-                validation: m.validation,
-            });
-        }
+        let steps = self.step_rows(&before, result);
         Ok(Judgement {
             before,
             after,

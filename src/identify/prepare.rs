@@ -8,7 +8,7 @@ use std::sync::Arc;
 use rayon::prelude::*;
 use serde::Serialize;
 
-use super::rows::{GridBaseCache, RowTable};
+use super::row_table::{GridBaseCache, RowTable};
 use super::{Config, IdentifyError, MIN_SAMPLES};
 use crate::derivative::{self, Estimator, Filter, States};
 use crate::log::Log;

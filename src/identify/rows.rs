@@ -2,8 +2,7 @@
 //! columns from the first-stage model's torque ([`Rows`]). Used by the regression and by every
 //! prediction.
 
-use std::collections::HashMap;
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 
 use rayon::prelude::*;
 
@@ -11,7 +10,11 @@ use super::base::{self, BaseModel};
 use super::dot;
 use super::layout::Layout;
 use super::prepare::{cores, Prepared};
+use super::row_table::{
+    BasePart, GridBase, GridBaseCache, RowTable, GRID_BASE_BYTES, ROW_TABLE_BYTES,
+};
 use crate::derivative::States;
+use crate::effects::JointState;
 use crate::pack::LANES;
 
 /// Fills regression rows for one state into its own buffer, `row[j * ncols + c]`. A joint's row
@@ -35,8 +38,8 @@ pub(super) struct Rows<'a> {
     batch_yb: Vec<f64>,
     batch_state: Vec<f64>,
     batch_lanes: usize,
-    /// Each joint's sign of the velocity in the state being placed ([`Rows::place`]).
-    signs: Vec<Option<f64>>,
+    /// Each joint's state for its effect columns (reused across states: no allocation).
+    states: Vec<JointState>,
 }
 
 impl<'a> Rows<'a> {
@@ -53,7 +56,7 @@ impl<'a> Rows<'a> {
             batch_yb: vec![0.0; LANES * layout.dof * layout.nb],
             batch_state: vec![0.0; LANES * 3 * layout.dof],
             batch_lanes: 0,
-            signs: vec![None; layout.dof],
+            states: Vec::with_capacity(layout.dof),
         }
     }
 
@@ -107,14 +110,10 @@ impl<'a> Rows<'a> {
             // From locals moved into the closure: reading `self.yb` and `nb` through references
             // reloaded them for every element (the writes to `o` could alias them).
             let (yb, scale) = (&self.yb[j * nb..(j + 1) * nb], &scales[j]);
-            let mut sign = None;
-            o.extend(active[j].iter().map(move |&c| {
-                match c.checked_sub(nb) {
-                    None => yb[c],
-                    Some(i) => terms[i]
-                        .effect
-                        .column_sharing_sign(q, dq, ddq, 0.0, scale, &mut sign),
-                }
+            let st = JointState::new(q, dq, ddq, scale);
+            o.extend(active[j].iter().map(move |&c| match c.checked_sub(nb) {
+                None => yb[c],
+                Some(i) => terms[i].effect.column_at(&st, 0.0),
             }));
         }
     }
@@ -179,23 +178,19 @@ impl<'a> Rows<'a> {
             out[j * nc..j * nc + nb].copy_from_slice(&self.yb[j * nb..(j + 1) * nb]);
         }
         let terms = &self.layout.terms;
-        // Each joint's sign of the velocity, computed once for its columns that need it.
-        let signs = &mut self.signs;
-        signs.iter_mut().for_each(|s| *s = None);
+        // Each joint's state, its velocity sign computed once for the columns that need it.
+        let states: &mut Vec<JointState> = &mut self.states;
+        states.clear();
+        states.extend(
+            (0..q.len()).map(|j| JointState::new(q[j], dq[j], ddq[j], &self.layout.scales[j])),
+        );
         for (i, t) in terms
             .iter()
             .enumerate()
             .filter(|(_, t)| !t.effect.needs_load())
         {
             let j = t.joint;
-            out[j * nc + nb + i] = t.effect.column_sharing_sign(
-                q[j],
-                dq[j],
-                ddq[j],
-                0.0,
-                &self.layout.scales[j],
-                &mut signs[j],
-            );
+            out[j * nc + nb + i] = t.effect.column_at(&states[j], 0.0);
         }
         // Load-dependent columns: the first-stage model's torque from the columns just filled.
         let load = &self.layout.load;
@@ -206,35 +201,10 @@ impl<'a> Rows<'a> {
         {
             let j = t.joint;
             let tau = dot::dot(&out[j * nc..(j + 1) * nc], load);
-            out[j * nc + nb + i] = t.effect.column_sharing_sign(
-                q[j],
-                dq[j],
-                ddq[j],
-                tau,
-                &self.layout.scales[j],
-                &mut signs[j],
-            );
+            out[j * nc + nb + i] = t.effect.column_at(&states[j], tau);
         }
     }
 }
-
-/// A file's unfiltered regression rows (and measured torque) on its whole grid, per joint its active columns
-/// (`rows[j][k · a_j + l]` for joint `j`'s `l`-th active column at grid sample `k`): evaluated
-/// once per cut-off and read by every pass the cut-off scan makes over them (the fits with both
-/// regression filters and their predictions), where each pass evaluated the regressor anew.
-#[derive(Debug)]
-pub(super) struct RowTable {
-    /// The layout the rows are of (a pass with another reads nothing from the table).
-    layout: Layout,
-    widths: Vec<usize>,
-    rows: Vec<Vec<f64>>,
-    /// The measured torque on the grid, per joint.
-    tau: Vec<Vec<f64>>,
-}
-
-/// Largest [`RowTable`]s the cut-off scan keeps (bytes, all files of one cut-off): beyond it the
-/// passes evaluate the rows themselves (memory stays bounded whatever the arm).
-pub(super) const ROW_TABLE_BYTES: usize = 48 << 20;
 
 impl RowTable {
     /// Bytes of the table of `p` with `layout`'s active columns (and the torque).
@@ -318,11 +288,6 @@ impl RowTable {
         }
     }
 
-    /// Whether the table holds the rows of `layout` (see [`Layout::same_rows`]).
-    pub(super) fn fits(&self, layout: &Layout) -> bool {
-        self.layout.same_rows(layout)
-    }
-
     /// The tables of `layout`'s rows of `files` (a file's own table kept where it is of
     /// `layout`), when all fit in [`ROW_TABLE_BYTES`] (the base part from `grids` where it holds
     /// it); `None` otherwise.
@@ -369,34 +334,6 @@ impl RowTable {
                 .collect(),
         )
     }
-
-    /// Joint `j`'s measured torque on grid samples `lo..hi`.
-    pub(super) fn tau(&self, j: usize, lo: usize, hi: usize) -> &[f64] {
-        &self.tau[j][lo..hi]
-    }
-
-    /// Joint `j`'s active columns at grid sample `k`.
-    pub(super) fn row(&self, j: usize, k: usize) -> &[f64] {
-        let w = self.widths[j];
-        &self.rows[j][k * w..(k + 1) * w]
-    }
-}
-
-/// What one file's rows at one cut-off are made of besides the effect columns — its estimated
-/// states, measured torque and base regressor on the whole grid, window by window as
-/// [`RowTable::new`] evaluates them: the same in every fold of a leave-one-out study and in a
-/// rescan (only the effect columns depend on the training set, through their friction scales),
-/// so made once ([`GridBaseCache`]).
-pub(super) struct GridBase {
-    /// Per window `(a, b)` of [`cores`]: its states, torque and base regressor.
-    parts: Vec<((usize, usize), BasePart)>,
-}
-
-struct BasePart {
-    st: States,
-    tau: Vec<Vec<f64>>,
-    /// `[(k - a) * dof * nb ..]`: [`BaseModel::eval`] of grid sample `k`.
-    yb: Vec<f64>,
 }
 
 impl GridBase {
@@ -428,40 +365,7 @@ impl GridBase {
     }
 }
 
-/// Largest total of [`GridBase`]s a [`GridBaseCache`] keeps (bytes); past it, rows are
-/// evaluated as without it.
-pub(super) const GRID_BASE_BYTES: usize = 64 << 20;
-
-/// [`GridBase`]s by (file, cut-off), shared by its clones (the folds of a study run in
-/// parallel), up to [`GRID_BASE_BYTES`] in all. The default holds none (a single
-/// identification scans each file at each cut-off once: nothing to share, memory to lose);
-/// [`GridBaseCache::shared`] is a study's.
-#[derive(Clone, Default)]
-pub struct GridBaseCache(Option<Arc<Mutex<GridBases>>>);
-
-#[derive(Default)]
-struct GridBases {
-    bytes: usize,
-    map: HashMap<((usize, usize), usize, u64), Arc<GridBase>>,
-}
-
-impl std::fmt::Debug for GridBaseCache {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let held = self
-            .0
-            .as_ref()
-            .and_then(|c| c.lock().ok().map(|g| g.map.len()))
-            .unwrap_or(0);
-        write!(f, "GridBaseCache({held} held)")
-    }
-}
-
 impl GridBaseCache {
-    /// A cache that holds what it makes (for the folds of a study).
-    pub(super) fn shared() -> Self {
-        GridBaseCache(Some(Arc::default()))
-    }
-
     /// `p`'s [`GridBase`] at cut-off `fc` (the one `p` was prepared at), made now if not held;
     /// `None` when it would not fit.
     pub(super) fn get(&self, p: &Prepared, base: &BaseModel, fc: f64) -> Option<Arc<GridBase>> {
@@ -495,7 +399,7 @@ impl GridBaseCache {
 mod tests {
     use super::*;
     use crate::effects::{Effect, Scales};
-    use crate::identify::layout::make_layout;
+    use crate::identify::columns::make_layout;
     use crate::identify::prepare::Smoothing;
     use crate::identify::synth::{generate, Spec};
     use crate::identify::Config;

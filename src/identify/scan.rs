@@ -10,12 +10,13 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::base::BaseModel;
+use super::columns::make_layout;
 use super::evaluate::heldout_per_filter;
-use super::layout::{make_layout, Layout};
+use super::layout::Layout;
 use super::load_stage::LoadModel;
 use super::prepare::{PrepCache, Prepared, Smoothing};
 use super::problem::Problem;
-use super::rows::{GridBaseCache, RowTable};
+use super::row_table::{GridBaseCache, RowTable};
 use super::{Config, IdentifyError, MIN_SAMPLES};
 use crate::effects::Term;
 use crate::log::Log;

@@ -4,10 +4,11 @@
 //! | file | what |
 //! |---|---|
 //! | [`pseudo_inertia`](mod@pseudo_inertia) | one link's 4×4 pseudo-inertia `J`, its `svec`, and [`LinkPhysics`] (mass, centre of mass, principal moments, consistency) |
-//! | [`consistent`] | the program — closest parameters in the least-squares metric with every `J ⪰ 0`, effect signs and bounds — its inputs, answer and errors |
+//! | [`consistent`] | the program — closest parameters in the least-squares metric with every `J ⪰ 0`, effect signs and bounds — its answer |
 //! | `barrier.rs` | the solver: a log-barrier interior-point method with dense, equilibrated Newton steps |
 //! | `start.rs` | its strictly feasible start |
 //! | `spd.rs` | equilibrated Cholesky and eigenvalue of badly scaled SPD matrices |
+//! | [`program`] | its inputs (problem, bounds, margin, ellipsoids, solver options) and errors |
 //! | `validate.rs` | input checks, each error saying what to change |
 //! | [`synth`] | 7-link-sized synthetic problems with a known answer (tests, benchmark) |
 //!
@@ -23,6 +24,7 @@
 //! ```
 
 pub mod consistent;
+pub mod program;
 pub mod pseudo_inertia;
 pub mod synth;
 
@@ -34,8 +36,8 @@ mod validate;
 #[cfg(test)]
 mod tests;
 
-pub use consistent::{
-    ActiveConstraint, ConsistentError, ConsistentFit, ConsistentProblem, EffectBound, Ellipsoid,
-    Margin, SolveReport, SolverOptions,
+pub use consistent::{ActiveConstraint, ConsistentFit, SolveReport};
+pub use program::{
+    ConsistentError, ConsistentProblem, EffectBound, Ellipsoid, Margin, SolverOptions,
 };
 pub use pseudo_inertia::{pseudo_inertia, svec_map, LinkPhysics};

@@ -104,7 +104,8 @@ pub(crate) fn effect_start(u: f64, (lo, hi): (f64, f64), natural: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::physical::consistent::{ellipsoid_matrix, margin_matrix, Ellipsoid, Margin};
+    use crate::physical::consistent::{ellipsoid_matrix, margin_matrix};
+    use crate::physical::program::{Ellipsoid, Margin};
     use crate::physical::pseudo_inertia::sorted_eigenvalues4;
 
     #[test]

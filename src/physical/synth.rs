@@ -17,7 +17,7 @@ use nalgebra::{DMatrix, DVector};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use super::consistent::{ConsistentProblem, EffectBound};
+use super::program::{ConsistentProblem, EffectBound};
 
 /// Number of links and effects of the synthetic arm.
 pub const LINKS: usize = 7;

@@ -6,9 +6,8 @@ use nalgebra::{DMatrix, DVector, Matrix3, SymmetricEigen, Vector3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use super::consistent::{
-    ActiveConstraint, ConsistentError, ConsistentProblem, EffectBound, Ellipsoid, Margin,
-};
+use super::consistent::ActiveConstraint;
+use super::program::{ConsistentError, ConsistentProblem, EffectBound, Ellipsoid, Margin};
 use super::pseudo_inertia::{pseudo_inertia, smat, svec, svec_map, LinkParams};
 use super::synth;
 

@@ -5,7 +5,7 @@
 
 use nalgebra::{DMatrix, DVector};
 
-use super::consistent::{ConsistentError, ConsistentProblem};
+use super::program::{ConsistentError, ConsistentProblem};
 use super::pseudo_inertia::{LinkParams, LinkPhysics};
 use super::spd::scaled_min_eigenvalue;
 

@@ -1,0 +1,124 @@
+//! Stage 2, **which columns**: the base parameters (per joint only those that can be non-zero in
+//! its rows), then the effect terms declared or searched, minus those structurally merged with the
+//! base ([`make_layout`]).
+
+use super::base::{self, BaseModel};
+use super::layout::Layout;
+use super::prepare::Prepared;
+use super::Config;
+use crate::effects::{self, Effect, EffectsSpec, Scales, Term};
+
+/// Effects merged with base parameters, and the base parameters they merge into.
+pub(super) type Merged = Vec<(Term, Vec<String>)>;
+
+/// The column layout for `train`: base parameters, then the effect terms (declared and searched,
+/// minus those structurally merged with the base), with friction scales from the data.
+pub(super) fn make_layout(
+    base: &BaseModel,
+    table: Option<&crate::dh::DhTable>,
+    train: &[Prepared],
+    cfg: &Config,
+) -> (Layout, Vec<Term>, Vec<Term>, Merged) {
+    let n = base.dof();
+    // Every joint's Σ q̇² in one pass over each file's states.
+    let sums: Vec<(Vec<f64>, usize)> = train
+        .iter()
+        .map(|p| p.state_sums(|st, j, i| st.dq[j][i].powi(2)))
+        .collect();
+    let scales: Vec<Scales> = (0..n)
+        .map(|j| {
+            let (s, c) = sums
+                .iter()
+                .fold((0.0, 0usize), |(s, c), (s1, c1)| (s + s1[j], c + c1));
+            Scales::from_rms_velocity((s / c.max(1) as f64).sqrt())
+        })
+        .collect();
+    let (declared, searched): (Vec<Term>, Vec<Term>) = match &cfg.effects {
+        EffectsSpec::Auto => (
+            Vec::new(),
+            Effect::ALL
+                .iter()
+                .flat_map(|&e| {
+                    (0..n).map(move |j| Term {
+                        effect: e,
+                        joint: j,
+                    })
+                })
+                .collect(),
+        ),
+        // Load-dependent terms come in the second stage (see `load_stage`).
+        EffectsSpec::Fixed(t) => (
+            t.iter()
+                .copied()
+                .filter(|t| !t.effect.needs_load())
+                .collect(),
+            Vec::new(),
+        ),
+    };
+    let names = base.names();
+    // Random states for the structural checks (merged effects, zero base columns per joint).
+    let states = table.map(|tab| base::random_states(tab, 40, 11));
+    let merged: Vec<(Term, Vec<String>)> = match &states {
+        Some(states) => {
+            let mut s = base.scratch();
+            let all: Vec<Term> = declared.iter().chain(&searched).copied().collect();
+            effects::structural_merges(
+                &all,
+                base.nb(),
+                n,
+                states,
+                |q, dq, ddq, out| base.eval(&mut s, q, dq, ddq, out),
+                &names,
+            )
+        }
+        None => Vec::new(),
+    };
+    let is_merged = |t: &Term| merged.iter().any(|(m, _)| m == t);
+    let declared: Vec<Term> = declared.into_iter().filter(|t| !is_merged(t)).collect();
+    let searched: Vec<Term> = searched.into_iter().filter(|t| !is_merged(t)).collect();
+    let mut terms: Vec<Term> = declared.iter().chain(&searched).copied().collect();
+    terms.sort();
+    terms.dedup();
+    let base_active = match &states {
+        Some(states) => structural_base_columns(base, states),
+        None => vec![(0..base.nb()).collect(); n],
+    };
+    let layout = Layout {
+        dof: n,
+        nb: base.nb(),
+        base_names: names,
+        base_exprs: base.exprs(),
+        terms,
+        scales,
+        base_active,
+        fixed: Vec::new(),
+        load: Vec::new(),
+    };
+    (layout, declared, searched, merged)
+}
+
+/// Per joint, the base columns that are non-zero at some of the random `states` (a
+/// structurally zero entry is exactly zero in the generated kernels and at rounding level,
+/// ≤ 1e-10 of the column's largest entry, in the numeric base map).
+fn structural_base_columns(base: &BaseModel, states: &[[Vec<f64>; 3]]) -> Vec<Vec<usize>> {
+    let (n, nb) = (base.dof(), base.nb());
+    let mut peak = vec![0.0f64; n * nb];
+    let mut s = base.scratch();
+    let mut yb = vec![0.0; n * nb];
+    for [q, dq, ddq] in states {
+        base.eval(&mut s, q, dq, ddq, &mut yb);
+        for (p, y) in peak.iter_mut().zip(&yb) {
+            *p = p.max(y.abs());
+        }
+    }
+    (0..n)
+        .map(|j| {
+            (0..nb)
+                .filter(|&c| {
+                    let col_max = (0..n).map(|i| peak[i * nb + c]).fold(0.0, f64::max);
+                    peak[j * nb + c] > 1e-10 * col_max
+                })
+                .collect()
+        })
+        .collect()
+}
