@@ -7,13 +7,12 @@
 //! streams a data file for identification, spilling a long one to disk; [`bag`] reads ROS 2
 //! bags into one); [`io`]
 //! writes outputs atomically; [`pack`] runs every kernel on four samples at once (SIMD across
-//! samples); [`cli`] is the command line.
+//! samples). The `dynid` command line is its own crate (`cli/`), a client of this one.
 
 pub mod arms;
 pub mod bag;
 pub mod bench;
 pub mod cholesky;
-pub mod cli;
 pub mod control;
 pub mod data;
 pub mod derivative;

@@ -70,7 +70,10 @@ fn torque_generated_and_reference_agree_with_the_closed_form() {
     let dir = tempfile::tempdir().unwrap();
     let params = write(dir.path(), "p.toml", PLANAR2_PARAMS);
     let data = write(dir.path(), "traj.csv", &planar2_csv(50));
-    let arm_path = concat!(env!("CARGO_MANIFEST_DIR"), "/arms/planar2.toml");
+    let arm_path = concat!(
+        concat!(env!("CARGO_MANIFEST_DIR"), "/.."),
+        "/arms/planar2.toml"
+    );
     let run = |arm: &str| {
         let out = dynid(&[
             "torque",

@@ -1,13 +1,16 @@
-//! The `dynid` command line (clap). `main.rs` only parses, calls [`run`] and maps errors to
-//! exit codes with [`exit_code`].
+//! `dynid`, the command line (clap) of the `dynid` library: parse, call the library, print; map
+//! errors to exit codes (2 = bad input, 1 = internal error; never a panic's 101).
 //!
-//! Adding a subcommand: a module under `src/cli/` with an `Args` struct (clap `Args`) and a
-//! `run(&Args) -> anyhow::Result<()>`, one variant in [`Command`] and one arm in [`run`].
+//! Adding a subcommand: a file in `cli/src/` with an `Args` struct (clap `Args`) and a
+//! `run(&Args) -> anyhow::Result<()>`, one variant in [`Command`] and one arm in [`run`]; the work
+//! itself goes in the library.
 
 use std::path::Path;
+use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+mod allocator;
 mod arms;
 mod bar;
 mod bench;
@@ -55,6 +58,23 @@ pub enum Command {
     Simulate(simulate::Args),
 }
 
+fn main() -> ExitCode {
+    allocator::keep_large_buffers();
+    let cli = Cli::parse();
+    match std::panic::catch_unwind(|| run(cli)) {
+        Ok(Ok(())) => ExitCode::SUCCESS,
+        Ok(Err(err)) if is_broken_pipe(&err) => ExitCode::SUCCESS,
+        Ok(Err(err)) => {
+            eprintln!("error: {err:#}");
+            ExitCode::from(exit_code(&err))
+        }
+        Err(_) => {
+            eprintln!("error: internal error (a bug in dynid; the panic message is above) — please report it with the command line");
+            ExitCode::from(1)
+        }
+    }
+}
+
 /// Runs one command line.
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
@@ -82,14 +102,14 @@ pub struct InputError(pub String);
 pub fn exit_code(err: &anyhow::Error) -> u8 {
     let bad_input = err.chain().any(|e| {
         e.is::<InputError>()
-            || e.is::<crate::dh::DhError>()
-            || e.is::<crate::params::ParamsError>()
-            || e.is::<crate::data::DataError>()
-            || e.is::<crate::bag::BagError>()
-            || e.is::<crate::arms::ArmError>()
-            || e.is::<crate::io::WriteError>()
-            || e.is::<crate::urdf::UrdfError>()
-            || e.is::<crate::urdf::ExportError>()
+            || e.is::<dynid::dh::DhError>()
+            || e.is::<dynid::params::ParamsError>()
+            || e.is::<dynid::data::DataError>()
+            || e.is::<dynid::bag::BagError>()
+            || e.is::<dynid::arms::ArmError>()
+            || e.is::<dynid::io::WriteError>()
+            || e.is::<dynid::urdf::UrdfError>()
+            || e.is::<dynid::urdf::ExportError>()
             || e.is::<clap::Error>()
     });
     if bad_input {
@@ -113,7 +133,7 @@ where
     F: FnOnce(&mut dyn std::io::Write) -> std::io::Result<()>,
 {
     match out {
-        Some(path) if path != Path::new("-") => Ok(crate::io::atomic_write(path, write)?),
+        Some(path) if path != Path::new("-") => Ok(dynid::io::atomic_write(path, write)?),
         _ => {
             let stdout = std::io::stdout();
             let mut lock = std::io::BufWriter::new(stdout.lock());

@@ -15,13 +15,13 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 
-use super::{write_output, InputError};
-use crate::arms::{resolve, ArmSource};
-use crate::control::{Controller, Ctc, Pd, Rhftc, RhftcGains};
-use crate::data::{write_header, write_row};
-use crate::params::{InertialParams, ParamsOptions};
-use crate::sim::{simulate, Plant, SimConfig};
-use crate::trajectory::TrajectorySpec;
+use crate::{write_output, InputError};
+use dynid::arms::{resolve, ArmSource};
+use dynid::control::{Controller, Ctc, Pd, Rhftc, RhftcGains};
+use dynid::data::{write_header, write_row};
+use dynid::params::{InertialParams, ParamsOptions};
+use dynid::sim::{simulate, Plant, SimConfig};
+use dynid::trajectory::TrajectorySpec;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum ControllerKind {
@@ -77,7 +77,7 @@ pub struct Args {
     pub out: Option<PathBuf>,
 }
 
-fn base_params(model: &dyn crate::model::Model, params: &InertialParams) -> Vec<f64> {
+fn base_params(model: &dyn dynid::model::Model, params: &InertialParams) -> Vec<f64> {
     let mut theta = vec![0.0; model.nb()];
     model.base_params(&params.full_vector(), &mut theta);
     theta
@@ -139,7 +139,7 @@ fn read_trajectory(args: &Args, n: usize, arm: &str) -> Result<TrajectorySpec> {
 /// given), built on the model's `estimate` of the base parameters.
 fn controller(
     args: &Args,
-    model: &'static dyn crate::model::Model,
+    model: &'static dyn dynid::model::Model,
     estimate: Vec<f64>,
 ) -> Result<Box<dyn Controller>> {
     let n = model.dof();
@@ -181,13 +181,13 @@ fn controller(
 }
 
 /// One encoder count per joint: 2π/counts rad for a revolute joint, 1/counts m for a prismatic.
-fn encoder_resolution(model: &dyn crate::model::Model, counts: f64) -> Result<Vec<f64>> {
-    let table = crate::dh::DhTable::from_str(model.arm_toml(), model.name())?;
+fn encoder_resolution(model: &dyn dynid::model::Model, counts: f64) -> Result<Vec<f64>> {
+    let table = dynid::dh::DhTable::from_str(model.arm_toml(), model.name())?;
     Ok(table
         .joints
         .iter()
         .map(|j| {
-            if j.kind == crate::dh::JointKind::Revolute {
+            if j.kind == dynid::dh::JointKind::Revolute {
                 std::f64::consts::TAU / counts
             } else {
                 1.0 / counts
@@ -197,7 +197,7 @@ fn encoder_resolution(model: &dyn crate::model::Model, counts: f64) -> Result<Ve
 }
 
 /// The log as CSV: `t`, `q`, then (unless `--positions-only`) `dq`, `ddq`, then `tau`.
-fn write_log(args: &Args, log: &crate::sim::SimLog, n: usize) -> Result<()> {
+fn write_log(args: &Args, log: &dynid::sim::SimLog, n: usize) -> Result<()> {
     let signals: Vec<(&str, &[f64])> = if args.positions_only {
         vec![("q", &log.q), ("tau", &log.tau)]
     } else {
@@ -268,7 +268,7 @@ pub fn run(args: &Args) -> Result<()> {
         None => None,
     };
     let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(args.seed);
-    crate::measurement::add_measurement_noise(
+    dynid::measurement::add_measurement_noise(
         n,
         &mut log.q,
         &mut log.tau,

@@ -2,17 +2,17 @@
 //! a ROS 2 bag's joint states as the CSV `identify` and `torque` read (`t, q.., [dq..], [tau..]`).
 //!
 //! Also the one place that opens a data file for the other commands ([`open_log`]): a `.mcap`
-//! bag through [`crate::bag`] with the options of [`BagArgs`], anything else as CSV.
+//! bag through [`dynid::bag`] with the options of [`BagArgs`], anything else as CSV.
 
 use std::path::{Path, PathBuf};
 
 use anyhow::Result;
 
-use super::{write_output, InputError};
-use crate::arms::{resolve, ArmSource};
-use crate::bag::{self, BagError, BagOptions};
-use crate::data::{header, write_header, write_row};
-use crate::log::Log;
+use crate::{write_output, InputError};
+use dynid::arms::{resolve, ArmSource};
+use dynid::bag::{self, BagError, BagOptions};
+use dynid::data::{header, write_header, write_row};
+use dynid::log::Log;
 
 /// How a ROS 2 bag (`.mcap`) is read; shared by `convert`, `identify` and `torque`.
 #[derive(Debug, Clone, Default, clap::Args)]

@@ -1,11 +1,11 @@
 //! The terminal's progress bar: an [`indicatif`] bar behind the library's
-//! [`Observer`](crate::progress::Observer) (drawn on stderr when it is a terminal, hidden elsewhere).
+//! [`Observer`](dynid::progress::Observer) (drawn on stderr when it is a terminal, hidden elsewhere).
 
 use std::sync::Arc;
 
 use indicatif::{ProgressBar, ProgressStyle};
 
-use crate::progress::{Observer, Progress};
+use dynid::progress::{Observer, Progress};
 
 /// A spinner-and-count bar for the stages of long work.
 pub struct Bar(pub ProgressBar);

@@ -593,9 +593,10 @@ fn every_arm_survives_export_then_import() {
 
 #[test]
 fn joint_limits_survive_the_round_trip() {
-    let table =
-        DhTable::from_path(&Path::new(env!("CARGO_MANIFEST_DIR")).join("arms/puma560.toml"))
-            .unwrap();
+    let table = DhTable::from_path(
+        &Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/..")).join("arms/puma560.toml"),
+    )
+    .unwrap();
     let urdf = export(&table, None).unwrap();
     let back = import_str(&urdf, "puma560.urdf", &ImportOptions::default()).unwrap();
     for (a, b) in table.joints.iter().zip(&back.table.joints) {
@@ -976,7 +977,8 @@ fn pinocchio_unavailable(python: &Path, script: &Path) -> Option<String> {
 }
 
 fn run_pinocchio_check(extra: &[&str]) {
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/pinocchio/check_urdf.py");
+    let script =
+        Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/..")).join("tests/pinocchio/check_urdf.py");
     let python = project_python();
     // Never a silent pass: the test command (scripts/test.sh) installs Pinocchio into .venv/.
     if let Some(why) = pinocchio_unavailable(&python, &script) {

@@ -15,7 +15,7 @@ use crate::common::*;
 const CORPUS_DOF: usize = 2;
 
 fn corpus(kind: &str) -> Vec<PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR"))
+    let dir = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
         .join("tests/corpus")
         .join(kind);
     let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
@@ -379,8 +379,10 @@ proptest! {
 }
 
 fn valid_samples() -> Vec<Vec<u8>> {
-    let arm = std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join("arms/puma560.toml"))
-        .expect("puma560.toml");
+    let arm = std::fs::read(
+        Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/..")).join("arms/puma560.toml"),
+    )
+    .expect("puma560.toml");
     let params = b"[[link]]\nm = 1.0\ncom = [0.1, 0.0, 0.0]\ninertia_com = [0.01, 0.0, 0.0, 0.01, 0.0, 0.01]\n[effects]\nviscous = [0.1]\n".to_vec();
     let csv = b"t,q1,dq1,ddq1,tau1\n0,1e-3,2,3,4\n0.5,1,2,3,4\n".to_vec();
     let urdf = br#"<robot name="r"><link name="base"/>

@@ -8,11 +8,11 @@ use std::path::PathBuf;
 
 use anyhow::Result;
 
-use super::{write_output, InputError};
-use crate::arms::{resolve, ArmSource};
-use crate::bench::table::{markdown, svg, PinocchioTimes, RunInfo};
-use crate::bench::{Report, Settings, IDENTIFY_SAMPLES};
-use crate::model::Model;
+use crate::{write_output, InputError};
+use dynid::arms::{resolve, ArmSource};
+use dynid::bench::table::{markdown, svg, PinocchioTimes, RunInfo};
+use dynid::bench::{Report, Settings, IDENTIFY_SAMPLES};
+use dynid::model::Model;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -41,7 +41,7 @@ pub struct Args {
 /// generated kernels to time: a clear error says how to generate them).
 pub(super) fn generated_arms(arm: Option<&str>) -> Result<Vec<&'static dyn Model>> {
     Ok(match arm {
-        None => crate::arms::all().to_vec(),
+        None => dynid::arms::all().to_vec(),
         Some(name) => match resolve(name)? {
             ArmSource::Generated(m) => vec![m],
             ArmSource::Table(t) => {
@@ -87,19 +87,19 @@ pub fn run(args: &Args) -> Result<()> {
         indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} {msg}")
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
-    let (report, ident) = crate::bench::run(&arms, &Settings::quick(), args.samples, |done| {
+    let (report, ident) = dynid::bench::run(&arms, &Settings::quick(), args.samples, |done| {
         bar.set_message(done.to_string());
         bar.inc(1);
     })?;
     bar.finish_and_clear();
     if let Some(path) = &args.markdown {
         let md = markdown(&report, &pinocchio, &info);
-        crate::io::atomic_write(path, |w| w.write_all(md.as_bytes()))?;
+        dynid::io::atomic_write(path, |w| w.write_all(md.as_bytes()))?;
     }
     if let Some(path) = &args.svg {
         let svg = svg(&report, &pinocchio)
             .map_err(|e| anyhow::anyhow!("drawing the benchmark plot: {e}"))?;
-        crate::io::atomic_write(path, |w| w.write_all(svg.as_bytes()))?;
+        dynid::io::atomic_write(path, |w| w.write_all(svg.as_bytes()))?;
     }
     write_output(None, |w| {
         if args.json {
@@ -154,9 +154,9 @@ fn write_table(w: &mut dyn std::io::Write, report: &Report) -> std::io::Result<(
         w,
         "(LANES: the same generated kernel on {} samples per call, dynid::pack; LANES8: on {}, {}; in parentheses \
          the ratio of the forms that skip the constant-zero outputs)",
-        crate::pack::LANES,
-        crate::pack::wide::WIDE_LANES,
-        crate::pack::wide::wide_form()
+        dynid::pack::LANES,
+        dynid::pack::wide::WIDE_LANES,
+        dynid::pack::wide::wide_form()
     )?;
     let i = &report.identify;
     writeln!(

@@ -11,12 +11,12 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 
-use super::InputError;
-use crate::arms::resolve;
-use crate::derivative::Method;
-use crate::effects::parse_list;
-use crate::identify::{self, Config, Outcome};
-use crate::log::Log;
+use crate::InputError;
+use dynid::arms::resolve;
+use dynid::derivative::Method;
+use dynid::effects::parse_list;
+use dynid::identify::{self, Config, Outcome};
+use dynid::log::Log;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -68,7 +68,7 @@ pub struct Args {
     #[arg(long)]
     pub prior: Option<PathBuf>,
     #[command(flatten)]
-    pub bag: super::convert::BagArgs,
+    pub bag: crate::convert::BagArgs,
 }
 
 #[derive(Debug, Clone, Copy, clap::ValueEnum)]
@@ -177,11 +177,11 @@ pub fn run(args: &Args) -> Result<()> {
         ),
     };
     // On a terminal: the stage and the scan's cut-offs (or the folds) on stderr; nothing elsewhere.
-    let (bar, progress) = super::bar::Bar::start();
+    let (bar, progress) = crate::bar::Bar::start();
     let cfg = Config {
         progress,
         smoothing,
-        derivative: crate::derivative::Options {
+        derivative: dynid::derivative::Options {
             method: args.derivative.method(),
             cutoff_hz,
         },
@@ -190,7 +190,7 @@ pub fn run(args: &Args) -> Result<()> {
         physical: physical_options(args, dof)?,
         ..Config::default()
     };
-    let load = |p: &Path| super::convert::open_log(p, &arm, &args.bag, true);
+    let load = |p: &Path| crate::convert::open_log(p, &arm, &args.bag, true);
     let train: Vec<Log> = args
         .data
         .iter()
@@ -216,7 +216,7 @@ pub fn run(args: &Args) -> Result<()> {
         check_warnings(args, &outs.iter().collect::<Vec<_>>())?;
         let table = arm.dh_table().ok();
         let summary =
-            crate::report::leave_one_out::write(&args.out, &outs, &command, table.as_ref())
+            dynid::report::leave_one_out::write(&args.out, &outs, &command, table.as_ref())
                 .context("writing the leave-one-out report")?;
         print!("{summary}");
         return Ok(());
@@ -227,7 +227,7 @@ pub fn run(args: &Args) -> Result<()> {
     let outcome = outcome?;
     check_warnings(args, &[&outcome])?;
     let table = arm.dh_table().ok();
-    let files = crate::report::write(&args.out, &outcome, &command, table.as_ref())
+    let files = dynid::report::write(&args.out, &outcome, &command, table.as_ref())
         .context("writing the report")?;
     print_summary(&outcome);
     eprintln!("wrote {} files to {}", files.len(), args.out.display());
@@ -238,10 +238,10 @@ pub fn run(args: &Args) -> Result<()> {
 fn physical_options(args: &Args, dof: usize) -> Result<identify::physical::PhysicalOptions> {
     let prior = match &args.prior {
         Some(path) => {
-            let p = crate::params::InertialParams::from_path(
+            let p = dynid::params::InertialParams::from_path(
                 path,
                 dof,
-                &crate::params::ParamsOptions::default(),
+                &dynid::params::ParamsOptions::default(),
             )
             .map_err(|e| {
                 InputError(format!(
@@ -286,7 +286,7 @@ fn print_summary(o: &Outcome) {
     if let Some(c) = &o.consistent {
         show("physically consistent", c);
     }
-    println!("{}", crate::report::physical::verdict(o).replace("**", ""));
+    println!("{}", dynid::report::physical::verdict(o).replace("**", ""));
     if let Some(f) = o.train.first() {
         println!(
             "filters: cut-off {:.2} Hz, {}",

@@ -17,12 +17,14 @@ use dynid::log::Log;
 
 /// A dataset in the repository's `data/` folder.
 fn data(rel: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("data").join(rel)
+    Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
+        .join("data")
+        .join(rel)
 }
 
 fn arm_table(name: &str) -> DhTable {
     DhTable::from_path(
-        &Path::new(env!("CARGO_MANIFEST_DIR"))
+        &Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
             .join("arms")
             .join(format!("{name}.toml")),
     )

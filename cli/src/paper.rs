@@ -7,7 +7,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 
-use crate::paper::{run as run_paper, write_outputs, PaperConfig};
+use dynid::paper::{run as run_paper, write_outputs, PaperConfig};
 
 #[derive(Debug, Clone, clap::Args)]
 pub struct Args {
@@ -37,14 +37,14 @@ impl Default for Args {
 }
 
 pub fn run(args: &Args) -> Result<()> {
-    let model = crate::arms::find("planar2").context(
+    let model = dynid::arms::find("planar2").context(
         "the built-in arm `planar2` is missing: arms/planar2.toml must exist when dynid is built",
     )?;
     let mut cfg = PaperConfig {
         progress: if args.quiet {
-            crate::progress::Progress::silent()
+            dynid::progress::Progress::silent()
         } else {
-            super::bar::Bars::progress()
+            crate::bar::Bars::progress()
         },
         ..PaperConfig::default()
     };

@@ -250,7 +250,10 @@ fn eight_lane_kernels_equal_the_scalar_kernels_bit_for_bit_in_both_forms() {
 /// skip-zeros forms: read from the source text, not from the macro that turns those stores into
 /// skipped ones).
 fn constant_zero_outputs(arm: &str, kernel: &str) -> Vec<usize> {
-    let path = format!("{}/generated/{arm}.rs", env!("CARGO_MANIFEST_DIR"));
+    let path = format!(
+        "{}/generated/{arm}.rs",
+        concat!(env!("CARGO_MANIFEST_DIR"), "/..")
+    );
     let src = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
     let start = src
         .find(&format!("\npub fn {kernel}("))

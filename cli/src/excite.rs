@@ -12,13 +12,13 @@ use std::path::PathBuf;
 use anyhow::Result;
 use serde_json::json;
 
-use super::{write_output, InputError};
-use crate::arms::{resolve, ArmSource};
-use crate::excitation::{
+use crate::{write_output, InputError};
+use dynid::arms::{resolve, ArmSource};
+use dynid::excitation::{
     minimize, FourierProblem, GaConfig, Limits, LogisticProblem, LogisticSettings,
 };
-use crate::trajectory::logistic::Logistic;
-use crate::trajectory::TrajectorySpec;
+use dynid::trajectory::logistic::Logistic;
+use dynid::trajectory::TrajectorySpec;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum Kind {
@@ -75,7 +75,7 @@ pub fn run(args: &Args) -> Result<()> {
         generations: args.generations,
         ..GaConfig::default()
     };
-    let (bar, pb) = super::bar::Bar::start();
+    let (bar, pb) = crate::bar::Bar::start();
     pb.stage("generations", ga.generations as u64);
     let doc = match args.kind {
         Kind::Logistic => {

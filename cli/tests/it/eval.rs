@@ -44,7 +44,10 @@ fn eval_suite_quick_subset() {
 
 /// One hand-written case (`eval/patterns/NAME.json`) through the suite: its cases.json entry.
 fn pattern(name: &str) -> serde_json::Value {
-    let file = format!("{}/eval/patterns/{name}.json", env!("CARGO_MANIFEST_DIR"));
+    let file = format!(
+        "{}/eval/patterns/{name}.json",
+        concat!(env!("CARGO_MANIFEST_DIR"), "/..")
+    );
     let (_, cases) = suite(&["--pattern", &file]);
     cases[0].clone()
 }

@@ -5,9 +5,9 @@ use std::path::PathBuf;
 
 use anyhow::Result;
 
-use super::write_output;
-use crate::arms::resolve;
-use crate::params::{InertialParams, ParamsOptions};
+use crate::write_output;
+use dynid::arms::resolve;
+use dynid::params::{InertialParams, ParamsOptions};
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -56,6 +56,6 @@ pub fn run(args: &Args) -> Result<()> {
         }
         None => None,
     };
-    let text = crate::urdf::export(&table, params.as_ref())?;
+    let text = dynid::urdf::export(&table, params.as_ref())?;
     write_output(args.out.as_deref(), |w| w.write_all(text.as_bytes()))
 }

@@ -47,7 +47,7 @@ theta = 0.0
 #[test]
 #[ignore]
 fn adding_an_arm_is_adding_a_toml_and_building() {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let root = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.."));
     let scratch = tempfile::tempdir().unwrap();
     let copy = scratch.path().join("dynid");
     for dir in ["src", "macros", "codegen", "arms", "generated", "benches"] {

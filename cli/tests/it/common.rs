@@ -65,7 +65,7 @@ theta = 0.0
 
 /// Every table under `arms/`, plus the built-in test tables.
 pub fn all_tables() -> Vec<DhTable> {
-    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/arms");
+    let dir = concat!(concat!(env!("CARGO_MANIFEST_DIR"), "/.."), "/arms");
     let mut paths: Vec<_> = std::fs::read_dir(dir)
         .expect("arms/ exists")
         .map(|e| e.expect("readable dir entry").path())
@@ -192,7 +192,8 @@ pub fn project_python() -> std::path::PathBuf {
     if let Some(p) = std::env::var_os("DYNID_PYTHON") {
         return p.into();
     }
-    let venv = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(".venv/bin/python");
+    let venv =
+        std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/..")).join(".venv/bin/python");
     if venv.exists() {
         return venv;
     }
@@ -211,7 +212,7 @@ pub fn dynid(args: &[&str]) -> std::process::Output {
 /// test>` and `args`; prints its output and fails the test unless it exits 0 (77: a library is
 /// missing — the test command installs it). Returns the output text.
 pub fn python_script(script: &str, args: &[&std::ffi::OsStr]) -> String {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(script);
+    let path = std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/..")).join(script);
     let o = std::process::Command::new(project_python())
         .arg(&path)
         .args(["--dynid", env!("CARGO_BIN_EXE_dynid")])

@@ -23,10 +23,10 @@ use std::path::PathBuf;
 
 use anyhow::Result;
 
-use super::write_output;
-use crate::bench::{Case, Kernel, Settings, POOL};
-use crate::dh::{DhTable, JointKind};
-use crate::model::Model;
+use crate::write_output;
+use dynid::bench::{Case, Kernel, Settings, POOL};
+use dynid::dh::{DhTable, JointKind};
+use dynid::model::Model;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -78,7 +78,7 @@ fn write_numbers(w: &mut dyn std::io::Write, xs: &[f64]) -> std::io::Result<()> 
 }
 
 pub fn run(args: &Args) -> Result<()> {
-    let arms = super::bench::generated_arms(args.arm.as_deref())?;
+    let arms = crate::bench::generated_arms(args.arm.as_deref())?;
     let dumps = arms.into_iter().map(dump).collect::<Result<Vec<_>>>()?;
     write_output(args.out.as_deref(), |w| write_dumps(w, &dumps))
 }
@@ -131,7 +131,7 @@ mod tests {
 
     #[test]
     fn bench_models_dump_parses_back_to_the_bench_inputs() {
-        let arm = crate::arms::find("planar2").expect("planar2 is built in");
+        let arm = dynid::arms::find("planar2").expect("planar2 is built in");
         let d = dump(arm).unwrap();
         let mut text = Vec::new();
         write_dumps(&mut text, std::slice::from_ref(&d)).unwrap();

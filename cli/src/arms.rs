@@ -3,8 +3,8 @@
 use anyhow::Result;
 use serde::Serialize;
 
-use super::{write_output, InputError};
-use crate::model::Model;
+use crate::{write_output, InputError};
+use dynid::model::Model;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -64,9 +64,9 @@ fn info(m: &'static dyn Model) -> ArmInfo<'static> {
 
 pub fn run(args: &Args) -> Result<()> {
     let arms: Vec<&'static dyn Model> = match &args.arm {
-        Some(name) => match crate::arms::resolve(name)? {
-            crate::arms::ArmSource::Generated(m) => vec![m],
-            crate::arms::ArmSource::Table(t) => {
+        Some(name) => match dynid::arms::resolve(name)? {
+            dynid::arms::ArmSource::Generated(m) => vec![m],
+            dynid::arms::ArmSource::Table(t) => {
                 return Err(InputError(format!(
                     "{name}: `dynid arms` lists generated arms — copy the table to arms/{}.toml and run `cargo build` to generate it",
                     t.name
@@ -74,7 +74,7 @@ pub fn run(args: &Args) -> Result<()> {
                 .into())
             }
         },
-        None => crate::arms::all().to_vec(),
+        None => dynid::arms::all().to_vec(),
     };
     let infos: Vec<ArmInfo> = arms.into_iter().map(info).collect();
     write_output(None, |w| {

@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use anyhow::Result;
 use serde::Serialize;
 
-use crate::urdf::{import_file, ImportOptions};
+use dynid::urdf::{import_file, ImportOptions};
 
 #[derive(Debug, clap::Args)]
 pub struct Args {

@@ -14,11 +14,11 @@ use std::path::PathBuf;
 
 use anyhow::Result;
 
-use super::{write_output, InputError};
-use crate::arms::{resolve, ArmSource};
-use crate::data::{write_header, write_row, Trajectory};
-use crate::params::{InertialParams, ParamsOptions};
-use crate::reference::RefModel;
+use crate::{write_output, InputError};
+use dynid::arms::{resolve, ArmSource};
+use dynid::data::{write_header, write_row, Trajectory};
+use dynid::params::{InertialParams, ParamsOptions};
+use dynid::reference::RefModel;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -44,9 +44,9 @@ pub struct Args {
     pub cutoff: String,
     /// Without dq/ddq columns: the derivative estimator.
     #[arg(long, value_enum, default_value = "butterworth")]
-    pub derivative: super::identify::DerivativeArg,
+    pub derivative: crate::identify::DerivativeArg,
     #[command(flatten)]
-    pub bag: super::convert::BagArgs,
+    pub bag: crate::convert::BagArgs,
 }
 
 pub fn run(args: &Args) -> Result<()> {
@@ -59,8 +59,8 @@ pub fn run(args: &Args) -> Result<()> {
     for w in &params.warnings {
         eprintln!("warning: {w}");
     }
-    let mut traj = if crate::bag::is_bag(&args.data) {
-        let log = super::convert::open_log(&args.data, &arm, &args.bag, false)?;
+    let mut traj = if dynid::bag::is_bag(&args.data) {
+        let log = crate::convert::open_log(&args.data, &arm, &args.bag, false)?;
         log.read(0, log.len())
     } else {
         args.bag.reject_for_csv(&args.data)?;
@@ -89,8 +89,8 @@ pub fn run(args: &Args) -> Result<()> {
 
 /// Replaces `q` by its filtered estimate and fills `dq`, `ddq` at the log's sample times.
 fn estimate_states(traj: &mut Trajectory, args: &Args) -> Result<()> {
-    let cutoff_hz = super::identify::parse_cutoff(&args.cutoff)?;
-    let opts = crate::derivative::Options {
+    let cutoff_hz = crate::identify::parse_cutoff(&args.cutoff)?;
+    let opts = dynid::derivative::Options {
         method: args.derivative.method(),
         cutoff_hz,
     };
@@ -102,7 +102,7 @@ fn estimate_states(traj: &mut Trajectory, args: &Args) -> Result<()> {
     };
     let q = cols(&traj.q);
     let dq = traj.dq.as_deref().map(cols);
-    let est = crate::derivative::estimate(&traj.t, &q, dq.as_deref(), &opts)
+    let est = dynid::derivative::estimate(&traj.t, &q, dq.as_deref(), &opts)
         .map_err(|e| InputError(format!("{}: {e}", args.data.display())))?;
     eprintln!(
         "{}: no q̇/q̈ columns — estimated with {} (cut-off {:.4} Hz{})",

@@ -22,7 +22,8 @@ fn text(o: &Output) -> String {
 
 /// Runs `tests/bags/make_bag.py ARGS`; panics (never skips) when the writer is missing.
 fn make_bag(args: &[&str]) {
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/bags/make_bag.py");
+    let script =
+        Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/..")).join("tests/bags/make_bag.py");
     let python = project_python();
     let check = Command::new(&python).arg(&script).arg("--check").output();
     match check {
@@ -197,7 +198,8 @@ fn zero_stamps_fall_back_to_log_time_and_say_so() {
 #[test]
 fn a_bag_of_the_shared_set_identifies_like_the_csv() {
     let dir = tempfile::tempdir().unwrap();
-    let d = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/sim/planar2_paper_friction");
+    let d = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
+        .join("data/sim/planar2_paper_friction");
     // The arm with joint names, as import-urdf writes them: no --joints needed.
     let arm = std::fs::read_to_string(d.join("arm.toml")).unwrap();
     let mut named = String::new();
@@ -591,8 +593,8 @@ fn torque_from_a_bag_equals_torque_from_its_csv() {
     let csv = small_csv(dir.path(), 400);
     let bag = dir.path().join("t.mcap");
     make_bag(&["from-csv", s(&csv), s(&bag), "--names", "a,b", "--gripper"]);
-    let params =
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/examples/planar2_spring.params.toml");
+    let params = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
+        .join("docs/examples/planar2_spring.params.toml");
     let run = |data: &Path, extra: &[&str], out: &str| {
         let out = dir.path().join(out);
         let mut args = vec![

@@ -10,7 +10,7 @@ use std::process::Output;
 use crate::common::*;
 
 fn data(rel: &str) -> String {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
+    Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
         .join("data")
         .join(rel)
         .display()
