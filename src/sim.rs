@@ -1,7 +1,8 @@
 //! Closed-loop simulation: a fixed-step RK4 plant driven by a [`Controller`] that tracks a
 //! [`Motion`].
 //!
-//! The plant is the forward dynamics of any generated arm, `q̈ = (M(q) + Ia)⁻¹ (τ − h(q, q̇) − f(q̇))`,
+//! The plant is the forward dynamics of any generated arm, `q̈ = (M(q) + Ia)⁻¹ (τ − h(q, q̇) − f(q̇))`
+//! (the generated `forward_dynamics` kernel when there is no armature `Ia`),
 //! with optional unmodelled [`Effects`] (viscous and Coulomb friction, armature, offsets) so that
 //! identification can be tried on data the rigid-body model does not fully explain. The controller
 //! runs at the integration rate with a zero-order hold on the torque (as a real servo loop), the log
@@ -135,17 +136,31 @@ impl<'a> Plant<'a> {
     }
 
     /// Forward dynamics `q̈ = (M + Ia)⁻¹ (τ − h − f)`; false if the mass matrix is singular.
+    ///
+    /// Without armature the generated forward-dynamics kernel does it all (an unrolled LDLᵀ of
+    /// `M`, no run-time factorisation), given the effective torque `τ − f`; armature changes `M`,
+    /// so then `M` and `h` are formed and factorised here. The kernel does not test `M` for
+    /// definiteness: a singular `M` shows as a non-finite `q̈`, an indefinite one (parameters
+    /// that are not physical) as the divergence the caller checks for.
     fn accel(&self, q: &[f64], dq: &[f64], tau: &[f64], ddq: &mut [f64], w: &mut Work) -> bool {
         let n = q.len();
+        let armature = self.effects.as_ref().and_then(|e| e.armature.as_ref());
+        if armature.is_none() {
+            w.h.copy_from_slice(tau);
+            if let Some(e) = &self.effects {
+                for j in 0..n {
+                    w.h[j] = e.unload(j, dq[j], tau[j]) - e.torque(j, q[j], dq[j], 0.0);
+                }
+            }
+            self.model.forward_dynamics(q, dq, &w.h, &self.theta, ddq);
+            return ddq.iter().all(|x| x.is_finite());
+        }
         self.model.mass_matrix(q, &self.theta, &mut w.m);
         self.model.bias(q, dq, &self.theta, &mut w.h);
-        for j in 0..n {
-            ddq[j] = tau[j] - w.h[j];
-        }
         if let Some(e) = &self.effects {
             for j in 0..n {
                 ddq[j] = e.unload(j, dq[j], tau[j]) - w.h[j] - e.torque(j, q[j], dq[j], 0.0);
-                if let Some(ia) = &e.armature {
+                if let Some(ia) = armature {
                     w.m[j * n + j] += ia[j];
                 }
             }
@@ -377,6 +392,42 @@ pub fn simulate_from(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The generated forward dynamics (no armature) inverts inverse dynamics with the other
+    /// effects on, as the factorising path does with armature.
+    #[test]
+    fn generated_forward_dynamics_inverts_inverse_dynamics_without_armature() {
+        let model = crate::arms::find("puma560").expect("puma560");
+        let mut p = vec![0.0; 60];
+        for (i, l) in p.chunks_mut(10).enumerate() {
+            let m = 2.0 + i as f64;
+            l.copy_from_slice(&[0.3, 0.01, 0.0, 0.25, -0.02, 0.2, 0.1 * m, 0.05, -0.1, m]);
+        }
+        let mut theta = vec![0.0; model.nb()];
+        model.base_params(&p, &mut theta);
+        let effects = Effects {
+            viscous: Some(vec![0.3; 6]),
+            coulomb: Some(vec![0.2; 6]),
+            ..Effects::default()
+        };
+        let plant = Plant::new(model, theta, Some(effects));
+        let mut w = Work {
+            m: vec![0.0; 36],
+            h: vec![0.0; 6],
+        };
+        let (q, dq, ddq) = (
+            [0.3, -1.2, 0.5, 2.0, -0.7, 1.1],
+            [0.8, -0.4, 0.2, 1.0, -1.5, 0.3],
+            [2.0, 1.5, -1.0, 0.5, 3.0, -2.0],
+        );
+        let mut tau = [0.0; 6];
+        plant.inverse_dynamics(&q, &dq, &ddq, &mut tau);
+        let mut back = [0.0; 6];
+        assert!(plant.accel(&q, &dq, &tau, &mut back, &mut w));
+        for j in 0..6 {
+            assert!((back[j] - ddq[j]).abs() < 1e-9, "{back:?} vs {ddq:?}");
+        }
+    }
 
     /// Forward dynamics inverts inverse dynamics with every effect on, load-dependent friction
     /// included (inverted in closed form by `Effects::unload`), motoring and braking.
