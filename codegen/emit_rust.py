@@ -15,7 +15,7 @@ from .fuse import fuse
 from .schedule import schedule
 
 BINARY = {ca.OP_ADD: "+", ca.OP_SUB: "-", ca.OP_MUL: "*", ca.OP_DIV: "/"}
-MULS = {ca.OP_MUL, ca.OP_DIV, ca.OP_SQ, ca.OP_TWICE}
+MULS = {ca.OP_MUL, ca.OP_DIV, ca.OP_SQ, ca.OP_TWICE, ca.OP_INV}
 ADDS = {ca.OP_ADD, ca.OP_SUB}
 
 
@@ -91,6 +91,8 @@ def emit(
                 name, new = fresh(f"-{slot[ins[0]]}", ("neg", slot[ins[0]]))
             elif op == ca.OP_SQ:
                 name, new = binary("*", slot[ins[0]], slot[ins[0]])
+            elif op == ca.OP_INV:
+                name, new = binary("/", "1.0", slot[ins[0]])
             elif op == ca.OP_TWICE:
                 name, new = binary("*", "2.0", slot[ins[0]])
             else:

@@ -15,8 +15,10 @@ import numpy as np
 from . import GENERATOR_VERSION
 from .algebra import Scalar
 from .base_params import BaseParams, analyse, param_names, random_states
+from .derivatives import inverse_dynamics_jacobians
 from .dh import DhTable, load
 from .emit_rust import emit
+from .forward_dynamics import inverse, ltdl, matmul, solve
 from .kernels import INPUT_LEN, KERNELS
 from .kinematics import Symbols, transforms
 from .lagrange import lagrange_function
@@ -73,13 +75,30 @@ def derive(arm: DhTable, base: BaseParams) -> tuple[Symbols, ca.SX, list[Kernel]
         for i in range(k, n):
             M[i][k] = M[k][i] = col[i]
 
+    h = rnea(tf, forward(tf, dq, zero, g), p_star)
+    tau = rnea(tf, full, p_star)
+    L, inv_d = ltdl(M)
+    qdd = solve(L, inv_d, [sym.tau[i] - h[i] for i in range(n)])
+    M_inv = inverse(L, inv_d)
+    J_q, J_dq = inverse_dynamics_jacobians(sym, tau)
+    # ∂q̈/∂x = −M⁻¹ ∂τ/∂x at q̈ = FD(q, q̇, τ): the same Jacobians with q̈ replaced by its expression.
+    J_fd = ca.substitute([J_q, J_dq], [sym.ddq], [ca.vertcat(*[ca.SX(x) for x in qdd])])
+    dqdd = [matmul(M_inv, [[-J[r, c] for c in range(n)] for r in range(n)]) for J in J_fd]
+
+    def flat(*mats) -> list[Scalar]:
+        return [m[r][c] if isinstance(m, list) else m[r, c] for m in mats for r in range(n) for c in range(n)]
+
     outputs: dict[str, list[Scalar]] = {
         "regressor": [y for row in Y for y in row],
         "base_regressor": [y for row in Yb for y in row],
-        "mass_matrix": [m for row in M for m in row],
-        "bias": rnea(tf, forward(tf, dq, zero, g), p_star),
+        "mass_matrix": flat(M),
+        "bias": h,
         "gravity": rnea(tf, forward(tf, zero, zero, g), p_star),
-        "inverse_dynamics": rnea(tf, full, p_star),
+        "inverse_dynamics": tau,
+        "forward_dynamics": qdd,
+        "inverse_mass_matrix": flat(M_inv),
+        "inverse_dynamics_derivatives": flat(J_q, J_dq),
+        "forward_dynamics_derivatives": flat(dqdd[0], dqdd[1], M_inv),
     }
     if set(outputs) != {k.name for k in KERNELS}:
         raise AssertionError(f"derive() and codegen/kernels.py disagree: {sorted(outputs)}")
@@ -116,7 +135,7 @@ def check_against_lagrange(arm: DhTable, sym: Symbols, Y: list[Scalar], samples:
 
 
 def emit_kernel(arm: DhTable, sym: Symbols, theta: ca.SX, k: Kernel) -> Emitted:
-    vectors = {"trig": sym.trig, "q": sym.q, "dq": sym.dq, "ddq": sym.ddq, "theta": theta}
+    vectors = {"trig": sym.trig, "q": sym.q, "dq": sym.dq, "ddq": sym.ddq, "tau": sym.tau, "theta": theta}
     out = ca.cse(_sx(k.outputs))
     f = ca.Function(k.name, [vectors[v] for v in k.inputs], [out])
 

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from . import GENERATOR_VERSION
 
 # Rust length of each kernel input.
-INPUT_LEN = {"q": "DOF", "dq": "DOF", "ddq": "DOF", "theta": "NB"}
+INPUT_LEN = {"q": "DOF", "dq": "DOF", "ddq": "DOF", "tau": "DOF", "theta": "NB"}
 
 
 @dataclass(frozen=True)
@@ -49,6 +49,30 @@ KERNELS = (
         ("q", "dq", "ddq", "theta"),
         "DOF",
         "Inverse dynamics `τ = M(q)q̈ + h(q, q̇)`.",
+    ),
+    KernelSpec(
+        "forward_dynamics",
+        ("q", "dq", "tau", "theta"),
+        "DOF",
+        "Forward dynamics `q̈ = M(q)⁻¹(τ − h(q, q̇))` (an unrolled LDLᵀ factorisation of `M`).",
+    ),
+    KernelSpec(
+        "inverse_mass_matrix",
+        ("q", "theta"),
+        "DOF * DOF",
+        "Inverse mass matrix `M(q)⁻¹` (`dof × dof`, row-major, full symmetric).",
+    ),
+    KernelSpec(
+        "inverse_dynamics_derivatives",
+        ("q", "dq", "ddq", "theta"),
+        "2 * DOF * DOF",
+        "`∂τ/∂q` then `∂τ/∂q̇` of inverse dynamics (each `dof × dof`, row-major: rows τ, columns q or q̇).",
+    ),
+    KernelSpec(
+        "forward_dynamics_derivatives",
+        ("q", "dq", "tau", "theta"),
+        "3 * DOF * DOF",
+        "`∂q̈/∂q`, `∂q̈/∂q̇` then `∂q̈/∂τ = M⁻¹` of forward dynamics (each `dof × dof`, row-major: rows q̈).",
     ),
 )
 

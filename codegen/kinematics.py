@@ -24,6 +24,7 @@ class Symbols:
     q: ca.SX  # joint variables (used only for prismatic joints)
     dq: ca.SX
     ddq: ca.SX
+    tau: ca.SX  # joint forces (the forward-dynamics kernels' input)
 
     @staticmethod
     def make(dof: int) -> Symbols:
@@ -33,6 +34,7 @@ class Symbols:
             ca.SX.sym("q", dof),
             ca.SX.sym("dq", dof),
             ca.SX.sym("ddq", dof),
+            ca.SX.sym("tau", dof),
         )
 
 

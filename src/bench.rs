@@ -698,6 +698,15 @@ impl Case {
             Kernel::Bias => r.bias(q, dq, p, out),
             Kernel::Gravity => r.gravity(q, p, out),
             Kernel::InverseDynamics => r.inverse_dynamics(q, dq, ddq, p, out),
+            // The forward-dynamics kernels read the third slot as τ.
+            Kernel::ForwardDynamics => r.model.forward_dynamics(&mut r.ws, q, dq, ddq, p, out),
+            Kernel::InverseMassMatrix => r.model.inverse_mass_matrix(&mut r.ws, q, p, out),
+            Kernel::InverseDynamicsDerivatives => r
+                .model
+                .inverse_dynamics_derivatives(&mut r.ws, q, dq, ddq, p, out),
+            Kernel::ForwardDynamicsDerivatives => r
+                .model
+                .forward_dynamics_derivatives(&mut r.ws, q, dq, ddq, p, out),
         }
     }
 

@@ -1,7 +1,8 @@
-//! Closed-loop simulation: a fixed-step RK4 plant driven by a [`Controller`] that tracks a
-//! [`Motion`].
+//! Closed-loop simulation: a fixed-step plant (RK4, or linearly implicit Euler for stiff effects:
+//! [`Integrator`]) driven by a [`Controller`] that tracks a [`Motion`].
 //!
-//! The plant is the forward dynamics of any generated arm, `q̈ = (M(q) + Ia)⁻¹ (τ − h(q, q̇) − f(q̇))`,
+//! The plant is the forward dynamics of any generated arm, `q̈ = (M(q) + Ia)⁻¹ (τ − h(q, q̇) − f(q̇))`
+//! (the generated `forward_dynamics` kernel when there is no armature `Ia`),
 //! with optional unmodelled [`Effects`] (viscous and Coulomb friction, armature, offsets) so that
 //! identification can be tried on data the rigid-body model does not fully explain. The controller
 //! runs at the integration rate with a zero-order hold on the torque (as a real servo loop), the log
@@ -17,11 +18,17 @@
 //! # }
 //! ```
 
+mod accel_jacobian;
+mod linearly_implicit_euler;
+mod rk4;
+
 use crate::cholesky::{cholesky, cholesky_solve};
 use crate::control::Controller;
 use crate::model::Model;
 use crate::params::Effects;
 use crate::trajectory::Motion;
+use linearly_implicit_euler::LinearlyImplicitEuler;
+use rk4::Rk4;
 
 /// Simulation failures.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -42,6 +49,18 @@ pub const MAX_STEPS: usize = 100_000_000;
 /// Most samples one simulation logs.
 pub const MAX_LOGGED: usize = 10_000_000;
 
+/// How the plant's state advances over one step (the torque held over it).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Integrator {
+    /// Classical fourth-order Runge–Kutta: four forward-dynamics evaluations a step.
+    #[default]
+    Rk4,
+    /// Linearly implicit Euler: one forward dynamics, one Jacobian (the generated derivative
+    /// kernels) and one `n × n` solve a step; first order, but stable at any step on stiff
+    /// effects (large viscous friction), where RK4 needs `h` below ~2.8 / the fastest rate.
+    LinearlyImplicitEuler,
+}
+
 /// Integration settings.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SimConfig {
@@ -51,15 +70,18 @@ pub struct SimConfig {
     pub log_every: usize,
     /// `|q|` above which the run counts as diverged.
     pub divergence_limit: f64,
+    /// The integration scheme.
+    pub integrator: Integrator,
 }
 
 impl Default for SimConfig {
-    /// 1 kHz integration and control, 100 Hz log.
+    /// 1 kHz RK4 integration and control, 100 Hz log.
     fn default() -> Self {
         Self {
             dt: 1e-3,
             log_every: 10,
             divergence_limit: 100.0,
+            integrator: Integrator::Rk4,
         }
     }
 }
@@ -119,10 +141,64 @@ impl SimLog {
     }
 }
 
-/// Scratch for one forward-dynamics evaluation.
+/// Scratch for the forward dynamics and its Jacobian: `M`, effective torque, the effects'
+/// slopes, derivative-kernel output (`3n²`) and a column.
 struct Work {
     m: Vec<f64>,
     h: Vec<f64>,
+    gq: Vec<f64>,
+    gv: Vec<f64>,
+    d: Vec<f64>,
+    col: Vec<f64>,
+}
+
+impl Work {
+    fn new(n: usize) -> Self {
+        let z = |len| vec![0.0; len];
+        Work {
+            m: z(n * n),
+            h: z(n),
+            gq: z(n),
+            gv: z(n),
+            d: z(3 * n * n),
+            col: z(n),
+        }
+    }
+}
+
+/// The state of one integration scheme.
+enum Stepper {
+    Rk4(Rk4),
+    LinearlyImplicitEuler(LinearlyImplicitEuler),
+}
+
+impl Stepper {
+    fn new(integrator: Integrator, n: usize) -> Self {
+        match integrator {
+            Integrator::Rk4 => Stepper::Rk4(Rk4::new(n)),
+            Integrator::LinearlyImplicitEuler => {
+                Stepper::LinearlyImplicitEuler(LinearlyImplicitEuler::new(n))
+            }
+        }
+    }
+
+    /// Advances `(q, dq)` by `h`; false when a matrix is singular.
+    #[allow(clippy::too_many_arguments)]
+    fn step(
+        &mut self,
+        plant: &Plant,
+        q: &mut [f64],
+        dq: &mut [f64],
+        acc: &[f64],
+        tau: &[f64],
+        h: f64,
+        w: &mut Work,
+    ) -> bool {
+        match self {
+            Stepper::Rk4(s) => s.step(plant, q, dq, acc, tau, h, w),
+            Stepper::LinearlyImplicitEuler(s) => s.step(plant, q, dq, acc, tau, h, w),
+        }
+    }
 }
 
 impl<'a> Plant<'a> {
@@ -135,17 +211,31 @@ impl<'a> Plant<'a> {
     }
 
     /// Forward dynamics `q̈ = (M + Ia)⁻¹ (τ − h − f)`; false if the mass matrix is singular.
+    ///
+    /// Without armature the generated forward-dynamics kernel does it all (an unrolled LDLᵀ of
+    /// `M`, no run-time factorisation), given the effective torque `τ − f`; armature changes `M`,
+    /// so then `M` and `h` are formed and factorised here. The kernel does not test `M` for
+    /// definiteness: a singular `M` shows as a non-finite `q̈`, an indefinite one (parameters
+    /// that are not physical) as the divergence the caller checks for.
     fn accel(&self, q: &[f64], dq: &[f64], tau: &[f64], ddq: &mut [f64], w: &mut Work) -> bool {
         let n = q.len();
+        let armature = self.effects.as_ref().and_then(|e| e.armature.as_ref());
+        if armature.is_none() {
+            w.h.copy_from_slice(tau);
+            if let Some(e) = &self.effects {
+                for j in 0..n {
+                    w.h[j] = e.unload(j, dq[j], tau[j]) - e.torque(j, q[j], dq[j], 0.0);
+                }
+            }
+            self.model.forward_dynamics(q, dq, &w.h, &self.theta, ddq);
+            return ddq.iter().all(|x| x.is_finite());
+        }
         self.model.mass_matrix(q, &self.theta, &mut w.m);
         self.model.bias(q, dq, &self.theta, &mut w.h);
-        for j in 0..n {
-            ddq[j] = tau[j] - w.h[j];
-        }
         if let Some(e) = &self.effects {
             for j in 0..n {
                 ddq[j] = e.unload(j, dq[j], tau[j]) - w.h[j] - e.torque(j, q[j], dq[j], 0.0);
-                if let Some(ia) = &e.armature {
+                if let Some(ia) = armature {
                     w.m[j * n + j] += ia[j];
                 }
             }
@@ -251,71 +341,6 @@ impl SimLog {
     }
 }
 
-/// Classical RK4 on x = (q, q̇) with τ held over the step: the four stages' (q̇, q̈) and the
-/// intermediate state, allocated once.
-struct Rk4 {
-    k: [[Vec<f64>; 2]; 4],
-    qs: Vec<f64>,
-    dqs: Vec<f64>,
-}
-
-impl Rk4 {
-    fn new(n: usize) -> Self {
-        let z = || vec![0.0; n];
-        Rk4 {
-            k: [[z(), z()], [z(), z()], [z(), z()], [z(), z()]],
-            qs: z(),
-            dqs: z(),
-        }
-    }
-
-    /// Advances `(q, dq)` by `h` from the acceleration `acc` at the start; false when the mass
-    /// matrix is singular at a stage.
-    #[allow(clippy::too_many_arguments)]
-    fn step(
-        &mut self,
-        plant: &Plant,
-        q: &mut [f64],
-        dq: &mut [f64],
-        acc: &[f64],
-        tau: &[f64],
-        h: f64,
-        w: &mut Work,
-    ) -> bool {
-        let n = q.len();
-        let [[k1v, k1a], [k2v, k2a], [k3v, k3a], [k4v, k4a]] = &mut self.k;
-        let (qs, dqs) = (&mut self.qs, &mut self.dqs);
-        k1v.copy_from_slice(dq);
-        k1a.copy_from_slice(acc);
-        for j in 0..n {
-            qs[j] = q[j] + 0.5 * h * k1v[j];
-            dqs[j] = dq[j] + 0.5 * h * k1a[j];
-        }
-        k2v.copy_from_slice(dqs);
-        let ok2 = plant.accel(qs, dqs, tau, k2a, w);
-        for j in 0..n {
-            qs[j] = q[j] + 0.5 * h * k2v[j];
-            dqs[j] = dq[j] + 0.5 * h * k2a[j];
-        }
-        k3v.copy_from_slice(dqs);
-        let ok3 = plant.accel(qs, dqs, tau, k3a, w);
-        for j in 0..n {
-            qs[j] = q[j] + h * k3v[j];
-            dqs[j] = dq[j] + h * k3a[j];
-        }
-        k4v.copy_from_slice(dqs);
-        let ok4 = plant.accel(qs, dqs, tau, k4a, w);
-        if !(ok2 && ok3 && ok4) {
-            return false;
-        }
-        for j in 0..n {
-            q[j] += h / 6.0 * (k1v[j] + 2.0 * k2v[j] + 2.0 * k3v[j] + k4v[j]);
-            dq[j] += h / 6.0 * (k1a[j] + 2.0 * k2a[j] + 2.0 * k3a[j] + k4a[j]);
-        }
-        true
-    }
-}
-
 /// Runs `controller` on `plant` along `traj` from the state `(q0, dq0)`.
 pub fn simulate_from(
     plant: &Plant,
@@ -328,15 +353,12 @@ pub fn simulate_from(
     let n = plant.model.dof();
     let steps = checked_steps(plant, traj, cfg, q0, dq0)?;
     let mut log = SimLog::with_capacity(n, steps / cfg.log_every + 1);
-    let mut w = Work {
-        m: vec![0.0; n * n],
-        h: vec![0.0; n],
-    };
+    let mut w = Work::new(n);
     let (mut q, mut dq) = (q0.to_vec(), dq0.to_vec());
     let (mut qd, mut dqd, mut ddqd) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
     let mut tau = vec![0.0; n];
     let mut acc = vec![0.0; n];
-    let mut rk4 = Rk4::new(n);
+    let mut stepper = Stepper::new(cfg.integrator, n);
     let h = cfg.dt;
 
     for step in 0..=steps {
@@ -359,7 +381,7 @@ pub fn simulate_from(
         if step == steps {
             break;
         }
-        if !rk4.step(plant, &mut q, &mut dq, &acc, &tau, h, &mut w) {
+        if !stepper.step(plant, &mut q, &mut dq, &acc, &tau, h, &mut w) {
             return Err(SimError::SingularMass { t });
         }
         let bad = q.iter().chain(&dq).any(|x| !x.is_finite())
@@ -378,6 +400,39 @@ pub fn simulate_from(
 mod tests {
     use super::*;
 
+    /// The generated forward dynamics (no armature) inverts inverse dynamics with the other
+    /// effects on, as the factorising path does with armature.
+    #[test]
+    fn generated_forward_dynamics_inverts_inverse_dynamics_without_armature() {
+        let model = crate::arms::find("puma560").expect("puma560");
+        let mut p = vec![0.0; 60];
+        for (i, l) in p.chunks_mut(10).enumerate() {
+            let m = 2.0 + i as f64;
+            l.copy_from_slice(&[0.3, 0.01, 0.0, 0.25, -0.02, 0.2, 0.1 * m, 0.05, -0.1, m]);
+        }
+        let mut theta = vec![0.0; model.nb()];
+        model.base_params(&p, &mut theta);
+        let effects = Effects {
+            viscous: Some(vec![0.3; 6]),
+            coulomb: Some(vec![0.2; 6]),
+            ..Effects::default()
+        };
+        let plant = Plant::new(model, theta, Some(effects));
+        let mut w = Work::new(6);
+        let (q, dq, ddq) = (
+            [0.3, -1.2, 0.5, 2.0, -0.7, 1.1],
+            [0.8, -0.4, 0.2, 1.0, -1.5, 0.3],
+            [2.0, 1.5, -1.0, 0.5, 3.0, -2.0],
+        );
+        let mut tau = [0.0; 6];
+        plant.inverse_dynamics(&q, &dq, &ddq, &mut tau);
+        let mut back = [0.0; 6];
+        assert!(plant.accel(&q, &dq, &tau, &mut back, &mut w));
+        for j in 0..6 {
+            assert!((back[j] - ddq[j]).abs() < 1e-9, "{back:?} vs {ddq:?}");
+        }
+    }
+
     /// Forward dynamics inverts inverse dynamics with every effect on, load-dependent friction
     /// included (inverted in closed form by `Effects::unload`), motoring and braking.
     #[test]
@@ -394,10 +449,7 @@ mod tests {
             ..Effects::default()
         };
         let plant = Plant::new(model, theta, Some(effects));
-        let mut w = Work {
-            m: vec![0.0; 4],
-            h: vec![0.0; 2],
-        };
+        let mut w = Work::new(2);
         for (q, dq, ddq) in [
             ([0.3, -1.2], [0.8, -0.4], [2.0, 1.5]),
             ([2.0, 0.5], [-0.6, 1.1], [-3.0, 0.2]),
@@ -409,6 +461,69 @@ mod tests {
             assert!(plant.accel(&q, &dq, &tau, &mut back, &mut w));
             for j in 0..2 {
                 assert!((back[j] - ddq[j]).abs() < 1e-9, "{back:?} vs {ddq:?}");
+            }
+        }
+    }
+
+    /// `accel_jacobian` against central differences (one Richardson step) of `accel` itself, on
+    /// PUMA 560 with smooth effects, with armature (the ID-derivative path) and without (the
+    /// FD-derivative kernel). Tolerance 1e-7 of the largest entry: the effects' slopes are
+    /// differences accurate to ~1e-10 of the torque, times `M⁻¹`; the extrapolated check is good
+    /// to ~1e-10, so a wrong sign, column or missing effect is off by O(1).
+    #[test]
+    fn accel_jacobian_is_the_derivative_of_accel() {
+        let model = crate::arms::find("puma560").expect("puma560");
+        let mut p = vec![0.0; 60];
+        for (i, l) in p.chunks_mut(10).enumerate() {
+            let m = 2.0 + i as f64;
+            l.copy_from_slice(&[0.3, 0.01, 0.0, 0.25, -0.02, 0.2, 0.1 * m, 0.05, -0.1, m]);
+        }
+        let mut theta = vec![0.0; model.nb()];
+        model.base_params(&p, &mut theta);
+        let smooth = Effects {
+            viscous: Some(vec![0.3; 6]),
+            coulomb: Some(vec![0.2; 6]),
+            stribeck: Some(vec![0.1; 6]),
+            spring: Some(vec![1.0; 6]),
+            loadcoulomb: Some(vec![0.1; 6]),
+            sign_velocity: Some(vec![0.5; 6]),
+            ..Effects::default()
+        };
+        let with_armature = Effects {
+            armature: Some(vec![0.2; 6]),
+            ..smooth.clone()
+        };
+        let (q, dq, tau) = (
+            [0.3, -1.2, 0.5, 2.0, -0.7, 1.1],
+            [0.8, -0.4, 0.2, 1.0, -1.5, 0.3],
+            [2.0, 1.5, -1.0, 0.5, 3.0, -2.0],
+        );
+        for effects in [None, Some(smooth), Some(with_armature)] {
+            let plant = Plant::new(model, theta.clone(), effects);
+            let mut w = Work::new(6);
+            let mut acc = [0.0; 6];
+            assert!(plant.accel(&q, &dq, &tau, &mut acc, &mut w));
+            let (mut jq, mut jv) = ([0.0; 36], [0.0; 36]);
+            assert!(plant.accel_jacobian(&q, &dq, &tau, &acc, &mut jq, &mut jv, &mut w));
+            for (block, analytic) in [(0, &jq), (1, &jv)] {
+                let scale = analytic.iter().fold(1.0_f64, |s, x| s.max(x.abs()));
+                for j in 0..6 {
+                    let mut diff = |h: f64| {
+                        let mut ends = [[0.0; 6]; 2];
+                        for (sign, end) in [(1.0, 0), (-1.0, 1)] {
+                            let (mut qs, mut dqs) = (q, dq);
+                            [&mut qs, &mut dqs][block][j] += sign * h;
+                            assert!(plant.accel(&qs, &dqs, &tau, &mut ends[end], &mut w));
+                        }
+                        std::array::from_fn::<f64, 6, _>(|i| (ends[0][i] - ends[1][i]) / (2.0 * h))
+                    };
+                    let (coarse, fine) = (diff(1e-3), diff(5e-4));
+                    for i in 0..6 {
+                        let numeric = (4.0 * fine[i] - coarse[i]) / 3.0;
+                        let err = (analytic[i * 6 + j] - numeric).abs();
+                        assert!(err < 1e-7 * scale, "block {block} [{i}][{j}]: {err:.3e}");
+                    }
+                }
             }
         }
     }

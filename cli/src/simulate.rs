@@ -1,6 +1,6 @@
 //! `dynid simulate --arm A --params P --trajectory T [--controller rhftc|ctc|pd] [--estimate P2]
-//! [--dt S] [--log-every N] [--out F]`: closed-loop simulation of a generated arm (RK4 plant with
-//! the parameter file's effects) tracking a trajectory; writes CSV `t, q…, dq…, ddq…, tau…`.
+//! [--dt S] [--integrator rk4|implicit-euler] [--log-every N] [--out F]`: closed-loop simulation of
+//! a generated arm (RK4 or linearly implicit Euler plant with the parameter file's effects) tracking a trajectory; writes CSV `t, q…, dq…, ddq…, tau…`.
 //!
 //! `T` is JSON as written by `dynid excite` (its `trajectory` field is used) or a bare trajectory
 //! (`{"kind": "sine", ...}`). The controller's model is `--estimate` (another parameter file) or,
@@ -20,7 +20,7 @@ use dynid::arms::{resolve, ArmSource};
 use dynid::control::{Controller, Ctc, Pd, Rhftc, RhftcGains};
 use dynid::data::{write_header, write_row};
 use dynid::params::{InertialParams, ParamsOptions};
-use dynid::sim::{simulate, Plant, SimConfig};
+use dynid::sim::{simulate, Integrator, Plant, SimConfig};
 use dynid::trajectory::TrajectorySpec;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -28,6 +28,15 @@ pub enum ControllerKind {
     Rhftc,
     Ctc,
     Pd,
+}
+
+/// `--integrator`: the plant's integration scheme ([`Integrator`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum IntegratorKind {
+    /// Classical RK4.
+    Rk4,
+    /// Linearly implicit Euler (stable on stiff friction; first order).
+    ImplicitEuler,
 }
 
 #[derive(Debug, clap::Args)]
@@ -50,6 +59,9 @@ pub struct Args {
     /// Integration and control step, s.
     #[arg(long, default_value_t = 1e-3)]
     pub dt: f64,
+    /// Integration scheme of the plant.
+    #[arg(long, value_enum, default_value = "rk4")]
+    pub integrator: IntegratorKind,
     /// Log every N-th step.
     #[arg(long, default_value_t = 10)]
     pub log_every: usize,
@@ -260,6 +272,10 @@ pub fn run(args: &Args) -> Result<()> {
     let cfg = SimConfig {
         dt: args.dt,
         log_every: args.log_every,
+        integrator: match args.integrator {
+            IntegratorKind::Rk4 => Integrator::Rk4,
+            IntegratorKind::ImplicitEuler => Integrator::LinearlyImplicitEuler,
+        },
         ..SimConfig::default()
     };
     let mut log = simulate(&plant, controller.as_mut(), spec.as_dyn(), &cfg)?;

@@ -30,7 +30,7 @@ def kernels_of(name: str):
     arm = load(ROOT / "arms" / f"{name}.toml")
     base = analyse(arm)
     sym, theta, kernels = derive(arm, base)
-    vec = {"trig": sym.trig, "q": sym.q, "dq": sym.dq, "ddq": sym.ddq, "theta": theta}
+    vec = {"trig": sym.trig, "q": sym.q, "dq": sym.dq, "ddq": sym.ddq, "tau": sym.tau, "theta": theta}
     fns = {k.name: ca.Function(k.name, [vec[v] for v in k.inputs], [_sx(k.outputs)]) for k in kernels}
     return arm, base, fns
 
@@ -254,7 +254,7 @@ def test_schedule_keeps_every_statement_and_value_and_lowers_register_pressure()
         arm = load(ROOT / "arms" / f"{arm_name}.toml")
         sym, theta, kernels = derive(arm, analyse(arm))
         k = next(k for k in kernels if k.name == kernel)
-        vectors = {"trig": sym.trig, "q": sym.q, "dq": sym.dq, "ddq": sym.ddq, "theta": theta}
+        vectors = {"trig": sym.trig, "q": sym.q, "dq": sym.dq, "ddq": sym.ddq, "tau": sym.tau, "theta": theta}
         f = ca.Function(k.name, [vectors[v] for v in k.inputs], [ca.cse(_sx(k.outputs))])
         name = lambda inp, nz: f"{k.inputs[inp]}[{nz}]"  # noqa: E731
         return f, k, emit(f, name, len(k.outputs)).lines, emit(f, name, len(k.outputs), reorder=False).lines
@@ -317,7 +317,7 @@ def test_fuse_folds_each_single_use_product_into_its_sum_with_the_right_signs():
     arm = load(ROOT / "arms" / "puma560.toml")
     sym, theta, kernels = derive(arm, analyse(arm))
     k = next(k for k in kernels if k.name == "mass_matrix")
-    vectors = {"trig": sym.trig, "q": sym.q, "dq": sym.dq, "ddq": sym.ddq, "theta": theta}
+    vectors = {"trig": sym.trig, "q": sym.q, "dq": sym.dq, "ddq": sym.ddq, "tau": sym.tau, "theta": theta}
     g = ca.Function(k.name, [vectors[n] for n in k.inputs], [ca.cse(_sx(k.outputs))])
     body = emit(g, lambda inp, nz: f"{k.inputs[inp]}[{nz}]", len(k.outputs)).lines
     assert sum("mul_add" in ln for ln in body) > 100

@@ -553,17 +553,13 @@ pub fn kernel_enum(input: TokenStream) -> TokenStream {
             .iter()
             .map(|k| syn::parse_str::<syn::Expr>(&k.out_len).map_err(|e| e.to_string()))
             .collect::<Result<Vec<_>, _>>()?;
-        let args: Vec<Vec<Ident>> = kernels
-            .iter()
-            .map(|k| k.inputs.iter().map(|i| format_ident!("{}", i)).collect())
-            .collect();
         // The forms of every kernel, one call each: `Kernel`'s method, the value type, the `Model`
         // method's suffix, the doc.
         let mut forms = vec![(
             format_ident!("call"),
             quote!(f64),
             String::new(),
-            "Calls this kernel of `model`; inputs it does not take are ignored (`theta`: base parameters).".to_string(),
+            "Calls this kernel of `model`; inputs it does not take are ignored (`ddq`: q̈, or τ for the kernels that take τ; `theta`: base parameters).".to_string(),
         )];
         for (suffix, zeros) in LANE_FORMS {
             let skip = if zeros {
@@ -611,9 +607,29 @@ pub fn kernel_enum(input: TokenStream) -> TokenStream {
                 fn #call(#params);
             }
         });
+        // `Kernel::call`'s third joint-space slot is `ddq` for the kernels that take `q̈` and `τ`
+        // for those that take `τ` (forward dynamics): no kernel takes both.
+        let slots: Vec<Vec<Ident>> = kernels
+            .iter()
+            .map(|k| {
+                k.inputs
+                    .iter()
+                    .map(|i| format_ident!("{}", if i == "tau" { "ddq" } else { i.as_str() }))
+                    .collect()
+            })
+            .collect();
+        if let Some(k) = kernels
+            .iter()
+            .find(|k| k.inputs.iter().any(|i| i == "tau") && k.inputs.iter().any(|i| i == "ddq"))
+        {
+            return Err(format!(
+                "kernel `{}` takes both `ddq` and `tau`: `Kernel::call` has one slot for them",
+                k.name
+            ));
+        }
         let variant_calls: Vec<proc_macro2::TokenStream> = kernels
             .iter()
-            .zip(&args)
+            .zip(&slots)
             .map(|(k, args)| {
                 let calls = forms.iter().map(|(call, ty, suffix, _)| {
                     let method = format_ident!("{}{}", k.name, suffix);

@@ -5,8 +5,9 @@
 
 use std::path::Path;
 
-/// Rust names of the kernel inputs (`q`, `dq`, `ddq`: joint values, `theta`: base parameters).
-pub const INPUTS: [&str; 4] = ["q", "dq", "ddq", "theta"];
+/// Rust names of the kernel inputs (`q`, `dq`, `ddq`: joint values, `tau`: joint forces,
+/// `theta`: base parameters).
+pub const INPUTS: [&str; 5] = ["q", "dq", "ddq", "tau", "theta"];
 
 /// Where the manifest lives under the crate root.
 pub const PATH: &str = "generated/kernels.toml";

@@ -126,7 +126,10 @@ impl Arm {
     ) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
         let n = self.n();
         let d = &self.inner.dynamics;
-        let names = ["q", "dq", "ddq"];
+        let names = match kernel {
+            Kernel::ForwardDynamics | Kernel::ForwardDynamicsDerivatives => ["q", "dq", "tau"],
+            _ => ["q", "dq", "ddq"],
+        };
         let mut inputs: Vec<Input> = Vec::new();
         for (k, s) in states.iter().enumerate() {
             if let Some(obj) = s {
@@ -140,8 +143,12 @@ impl Arm {
         let mut dims = match kernel {
             Kernel::Regressor => vec![n, d.np()],
             Kernel::BaseRegressor => vec![n, d.nb()],
-            Kernel::MassMatrix => vec![n, n],
-            Kernel::Bias | Kernel::Gravity | Kernel::InverseDynamics => vec![n],
+            Kernel::MassMatrix | Kernel::InverseMassMatrix => vec![n, n],
+            Kernel::Bias | Kernel::Gravity | Kernel::InverseDynamics | Kernel::ForwardDynamics => {
+                vec![n]
+            }
+            Kernel::InverseDynamicsDerivatives => vec![2, n, n],
+            Kernel::ForwardDynamicsDerivatives => vec![3, n, n],
         };
         if let Some(b) = batch {
             dims.insert(0, b);
@@ -197,6 +204,22 @@ impl Arm {
         }
         Ok(out)
     }
+}
+
+/// The `count` blocks of a `(count, n, n)` or `(N, count, n, n)` output, as views.
+fn blocks<'py>(all: &Bound<'py, PyArrayDyn<f64>>, count: usize) -> PyResult<Bound<'py, PyTuple>> {
+    let py = all.py();
+    let batched = all.ndim() == 4;
+    let views = (0..count)
+        .map(|k| {
+            if batched {
+                all.get_item((pyo3::types::PySlice::full(py), k))
+            } else {
+                all.get_item(k)
+            }
+        })
+        .collect::<PyResult<Vec<_>>>()?;
+    PyTuple::new(py, views)
 }
 
 fn py_name(kernel: Kernel) -> &'static str {
@@ -492,6 +515,95 @@ impl Arm {
             threads,
             out,
         )
+    }
+
+    /// Forward dynamics ``ddq = M(q)⁻¹ (tau − h(q, dq))`` (``(n,)`` or ``(N, n)``), the
+    /// generated unrolled LDLᵀ kernel.
+    #[pyo3(signature = (q, dq, tau, params, *, threads=None))]
+    fn forward_dynamics<'py>(
+        &self,
+        q: &Bound<'py, PyAny>,
+        dq: &Bound<'py, PyAny>,
+        tau: &Bound<'py, PyAny>,
+        params: &Bound<'py, PyAny>,
+        threads: Option<usize>,
+    ) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        let py = q.py();
+        self.kernel(
+            py,
+            Kernel::ForwardDynamics,
+            [Some(q), Some(dq), Some(tau)],
+            Some(params),
+            threads,
+            None,
+        )
+    }
+
+    /// Inverse mass matrix ``M(q)⁻¹`` (``(n, n)`` or ``(N, n, n)``).
+    #[pyo3(signature = (q, params, *, threads=None))]
+    fn inverse_mass_matrix<'py>(
+        &self,
+        q: &Bound<'py, PyAny>,
+        params: &Bound<'py, PyAny>,
+        threads: Option<usize>,
+    ) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        let py = q.py();
+        self.kernel(
+            py,
+            Kernel::InverseMassMatrix,
+            [Some(q), None, None],
+            Some(params),
+            threads,
+            None,
+        )
+    }
+
+    /// ``(dtau_dq, dtau_ddq)``: the partial derivatives of inverse dynamics, each ``(n, n)`` or
+    /// ``(N, n, n)``, rows the joint forces, columns the joint variables (as Pinocchio's
+    /// ``computeRNEADerivatives``). Views of one array.
+    #[pyo3(signature = (q, dq, ddq, params, *, threads=None))]
+    fn inverse_dynamics_derivatives<'py>(
+        &self,
+        q: &Bound<'py, PyAny>,
+        dq: &Bound<'py, PyAny>,
+        ddq: &Bound<'py, PyAny>,
+        params: &Bound<'py, PyAny>,
+        threads: Option<usize>,
+    ) -> PyResult<Bound<'py, PyTuple>> {
+        let py = q.py();
+        let all = self.kernel(
+            py,
+            Kernel::InverseDynamicsDerivatives,
+            [Some(q), Some(dq), Some(ddq)],
+            Some(params),
+            threads,
+            None,
+        )?;
+        blocks(&all, 2)
+    }
+
+    /// ``(dddq_dq, dddq_ddq, minv)``: the partial derivatives of forward dynamics with respect to
+    /// ``q``, ``dq`` and ``tau`` (``M(q)⁻¹``), each ``(n, n)`` or ``(N, n, n)``, rows the
+    /// accelerations (as Pinocchio's ``computeABADerivatives``). Views of one array.
+    #[pyo3(signature = (q, dq, tau, params, *, threads=None))]
+    fn forward_dynamics_derivatives<'py>(
+        &self,
+        q: &Bound<'py, PyAny>,
+        dq: &Bound<'py, PyAny>,
+        tau: &Bound<'py, PyAny>,
+        params: &Bound<'py, PyAny>,
+        threads: Option<usize>,
+    ) -> PyResult<Bound<'py, PyTuple>> {
+        let py = q.py();
+        let all = self.kernel(
+            py,
+            Kernel::ForwardDynamicsDerivatives,
+            [Some(q), Some(dq), Some(tau)],
+            Some(params),
+            threads,
+            None,
+        )?;
+        blocks(&all, 3)
     }
 
     /// The arm as a URDF (links = the D-H frames, as ``dynid export-urdf``), with the full

@@ -27,7 +27,8 @@ pub enum Dynamics {
 }
 
 /// The joint-space inputs of one call: `samples × dof` values each, row-major. A kernel reads
-/// only the ones it takes; the others may be empty.
+/// only the ones it takes; the others may be empty. `ddq` holds τ for the forward-dynamics
+/// kernels (the third slot of [`Kernel::call`]).
 pub struct States<'a> {
     pub samples: usize,
     pub q: &'a [f64],
@@ -213,6 +214,15 @@ impl<'a> Work<'a> {
                 Kernel::Bias => model.bias(&mut ws, q, dq, p, o),
                 Kernel::Gravity => model.gravity(&mut ws, q, p, o),
                 Kernel::InverseDynamics => model.inverse_dynamics(&mut ws, q, dq, ddq, p, o),
+                // The forward-dynamics kernels read τ from the third slot (`States::ddq`).
+                Kernel::ForwardDynamics => model.forward_dynamics(&mut ws, q, dq, ddq, p, o),
+                Kernel::InverseMassMatrix => model.inverse_mass_matrix(&mut ws, q, p, o),
+                Kernel::InverseDynamicsDerivatives => {
+                    model.inverse_dynamics_derivatives(&mut ws, q, dq, ddq, p, o)
+                }
+                Kernel::ForwardDynamicsDerivatives => {
+                    model.forward_dynamics_derivatives(&mut ws, q, dq, ddq, p, o)
+                }
             }
         }
     }
@@ -315,11 +325,16 @@ fn row(v: &[f64], s: usize, n: usize) -> &[f64] {
     }
 }
 
-/// Which of `(q, dq, ddq)` `kernel` reads.
+/// Which of `(q, dq, ddq)` `kernel` reads (`ddq`: τ for the forward-dynamics kernels).
 pub fn takes(kernel: Kernel) -> [bool; 3] {
     match kernel {
-        Kernel::Regressor | Kernel::BaseRegressor | Kernel::InverseDynamics => [true; 3],
-        Kernel::MassMatrix | Kernel::Gravity => [true, false, false],
+        Kernel::Regressor
+        | Kernel::BaseRegressor
+        | Kernel::InverseDynamics
+        | Kernel::InverseDynamicsDerivatives
+        | Kernel::ForwardDynamics
+        | Kernel::ForwardDynamicsDerivatives => [true; 3],
+        Kernel::MassMatrix | Kernel::Gravity | Kernel::InverseMassMatrix => [true, false, false],
         Kernel::Bias => [true, true, false],
     }
 }

@@ -58,6 +58,10 @@ pub fn pinocchio_algo(kernel: &str) -> Option<&'static str> {
         "bias" => Some("nle"),
         "gravity" => Some("gravity"),
         "inverse_dynamics" => Some("rnea"),
+        "forward_dynamics" => Some("aba"),
+        "inverse_mass_matrix" => Some("minverse"),
+        "inverse_dynamics_derivatives" => Some("rnea_derivatives"),
+        "forward_dynamics_derivatives" => Some("aba_derivatives"),
         _ => None,
     }
 }

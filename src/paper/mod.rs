@@ -244,6 +244,7 @@ fn run_step(
         dt: cfg.dt,
         log_every: (cfg.ts / cfg.dt).round().max(1.0) as usize,
         divergence_limit: 100.0,
+        ..SimConfig::default()
     };
     fn run<C: ModelBased>(
         plant: &Plant,
@@ -403,6 +404,7 @@ fn fourier_comparison(
         dt: cfg.dt,
         log_every: (cfg.ts / cfg.dt).round().max(1.0) as usize,
         divergence_limit: 100.0,
+        ..SimConfig::default()
     };
     let log = simulate(&plant, &mut pd, &traj, &sim).map_err(|source| PaperError::Sim {
         what: "Fourier experiment".into(),

@@ -5,7 +5,9 @@
 //! Pinocchio-style split: [`RefModel`] is what the arm is (immutable, built once from a
 //! [`DhTable`]); [`Workspace`] is scratch for one evaluation, so repeated calls allocate nothing.
 //! Algorithms live in files named after them: [`rnea`](RefModel::inverse_dynamics) (recursive
-//! Newton–Euler), [`regressor`](RefModel::regressor), [`crba`](RefModel::mass_matrix).
+//! Newton–Euler), [`regressor`](RefModel::regressor), [`crba`](RefModel::mass_matrix),
+//! [`forward_dynamics`](RefModel::forward_dynamics) (CRBA + Cholesky) and
+//! [`derivatives`](RefModel::inverse_dynamics_derivatives) (central differences).
 //!
 //! Conventions are those of [`crate::model`]: full parameters `p` per link
 //! `XX, XY, XZ, YY, YZ, ZZ, MX, MY, MZ, M` about the link-frame origin; row-major outputs;
@@ -28,6 +30,8 @@
 //! ```
 
 mod crba;
+pub mod derivatives;
+mod forward_dynamics;
 mod regressor;
 mod rnea;
 

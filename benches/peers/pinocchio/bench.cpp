@@ -21,11 +21,16 @@
 // override them.
 //
 // Output: `#` comment lines, a human-readable table, and one `pinocchio,<arm>,<algo>,<median_ns>`
-// line per measurement (algo: rnea, crba, nle, regressor, gravity), which is what
+// line per measurement (algo: rnea, crba, nle, regressor, gravity, aba, minverse, rnea_derivatives,
+// aba_derivatives; dynid's forward-dynamics kernels get the pool's q̈ slot as τ, so Pinocchio's
+// `aba` and `computeABADerivatives` do too), which is what
 // `dynid bench --pinocchio FILE` reads.
 
 #include <pinocchio/multibody.hpp>
+#include <pinocchio/algorithm/aba.hpp>
+#include <pinocchio/algorithm/aba-derivatives.hpp>
 #include <pinocchio/algorithm/crba.hpp>
+#include <pinocchio/algorithm/rnea-derivatives.hpp>
 #include <pinocchio/algorithm/regressor.hpp>
 #include <pinocchio/algorithm/rnea.hpp>
 
@@ -392,6 +397,28 @@ int main(int argc, char ** argv)
       report("gravity", timePerCall(timing, pool, [&](size_t i) {
                pinocchio::computeGeneralizedGravity(model, data, arm.q[i & mask]);
                escape(data.g.data());
+             }));
+      report("aba", timePerCall(timing, pool, [&](size_t i) {
+               const size_t k = i & mask;
+               pinocchio::aba(model, data, arm.q[k], arm.v[k], arm.a[k]);
+               escape(data.ddq.data());
+             }));
+      report("minverse", timePerCall(timing, pool, [&](size_t i) {
+               pinocchio::computeMinverse(model, data, arm.q[i & mask]);
+               escape(data.Minv.data());
+             }));
+      report("rnea_derivatives", timePerCall(timing, pool, [&](size_t i) {
+               const size_t k = i & mask;
+               pinocchio::computeRNEADerivatives(model, data, arm.q[k], arm.v[k], arm.a[k]);
+               escape(data.dtau_dq.data());
+               escape(data.dtau_dv.data());
+             }));
+      report("aba_derivatives", timePerCall(timing, pool, [&](size_t i) {
+               const size_t k = i & mask;
+               pinocchio::computeABADerivatives(model, data, arm.q[k], arm.v[k], arm.a[k]);
+               escape(data.ddq_dq.data());
+               escape(data.ddq_dv.data());
+               escape(data.Minv.data());
              }));
     }
     for (const std::string & line : csv)

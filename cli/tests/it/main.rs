@@ -4,6 +4,7 @@
 mod bag;
 mod cli;
 mod common;
+mod dynamics;
 mod eval;
 mod identify;
 mod kernels;
