@@ -1,6 +1,6 @@
 //! `∂τ/∂q`, `∂τ/∂q̇` of inverse dynamics and `∂q̈/∂q`, `∂q̈/∂q̇`, `∂q̈/∂τ` of forward dynamics, by
 //! central differences of the reference algorithms with one Richardson extrapolation
-//! ([`richardson`]): an oracle independent of the generator's forward-mode differentiation,
+//! (`richardson`): an oracle independent of the generator's forward-mode differentiation,
 //! accurate to about 1e-11 relative at the step [`STEP`] (four evaluations per column).
 
 use crate::dh::MAX_JOINTS;
