@@ -62,6 +62,7 @@ mod frames;
 mod geom;
 mod import;
 mod lump;
+pub mod roundtrip;
 mod tree;
 
 use std::fmt;
@@ -111,6 +112,18 @@ pub struct Imported {
     pub notes: Vec<String>,
     /// Suspicious input that was accepted (massless links, non-physical inertias).
     pub warnings: Vec<String>,
+    /// Per D-H link, where it sits in the URDF (for [`roundtrip`]).
+    pub(crate) placement: Vec<Placement>,
+}
+
+/// D-H link `k` in URDF terms: the link its joint moves, D-H frame `k` in that link's frame,
+/// and the other URDF bodies lumped into it (fixed below it, or on locked joints), in D-H frame
+/// `k`.
+#[derive(Debug, Clone)]
+pub(crate) struct Placement {
+    pub link: String,
+    pub dh_in_link: geom::Pose,
+    pub others: Vec<(String, lump::Body)>,
 }
 
 impl Imported {

@@ -12,4 +12,5 @@ mod new_arm;
 mod paper;
 mod physical;
 mod reference;
+mod roundtrip;
 mod urdf;
