@@ -57,6 +57,7 @@
 //! Checked against Pinocchio's RNEA on 22 robots of example-robot-data (UR, Panda, Kinova,
 //! xArm, Z1, SO-100, TIAGo, PR2, Baxter, ...): `tests/pinocchio/check_urdf.py`.
 
+pub mod attach;
 mod export;
 mod frames;
 mod geom;

@@ -10,6 +10,7 @@ mod kernels;
 mod loaders;
 mod new_arm;
 mod paper;
+mod payload;
 mod physical;
 mod reference;
 mod roundtrip;
