@@ -24,9 +24,8 @@ from typing import Any
 
 import numpy as np
 
-from ._dynid import Arm, DynidError, __version__, arms, read_params
+from ._dynid import Arm, DynidError, PayloadResult, __version__, arms, read_params
 from ._dynid import _identify as _native_identify
-from ._dynid import PayloadResult
 from ._dynid import _import_urdf as _native_import_urdf
 from ._dynid import _payload as _native_payload
 
