@@ -627,3 +627,51 @@ fn the_cli_writes_payload_json_params_and_report() {
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("--mass"));
 }
+
+/// `payload.urdf`'s new fixed link, imported again, adds exactly the payload to the last D-H
+/// link (the import lumps fixed children into it): on random trees with every joint kind and
+/// on TIAGo's arm.
+#[test]
+fn the_payload_link_imports_back_as_the_payload_on_the_last_link() {
+    use dynid::urdf::{attach::attach_body, import_str, ImportOptions};
+    let mut rng = rng(3905);
+    let mut cases: Vec<(String, ImportOptions)> = (0..10)
+        .map(|case| {
+            let robot = super::urdf::random_robot(&mut rng, 1 + case % 6);
+            let opts = ImportOptions {
+                tip: Some(super::urdf::tip_of(&robot)),
+                ..Default::default()
+            };
+            (robot.urdf(), opts)
+        })
+        .collect();
+    let tiago = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/data/real/tiago_figaroh/tiago.urdf"
+    );
+    cases.push((
+        std::fs::read_to_string(tiago).unwrap(),
+        ImportOptions::default(),
+    ));
+    for (i, (text, opts)) in cases.iter().enumerate() {
+        let before = import_str(text, "r.urdf", opts).unwrap();
+        let (phi, m, com) = random_payload(&mut rng);
+        let (_, _, inertia) = fit::physical(&phi);
+        let out = attach_body(text, "r.urdf", opts, "payload", m, com, inertia).unwrap();
+        let after = import_str(&out, "r.urdf", opts).unwrap();
+        assert_eq!(after.table, before.table, "case {i}: geometry changed");
+        let (a, b) = (before.params.full_vector(), after.params.full_vector());
+        let n = a.len();
+        let mut want = a.clone();
+        for k in 0..10 {
+            want[n - 10 + k] += phi[k];
+        }
+        assert_close(
+            &b,
+            &want,
+            1e-9,
+            &format!("case {i}: the last link carries the payload"),
+        );
+        assert!(out.starts_with(&text[..text.rfind("</robot>").unwrap()]));
+    }
+}
