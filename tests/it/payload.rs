@@ -675,3 +675,68 @@ fn the_payload_link_imports_back_as_the_payload_on_the_last_link() {
         assert!(out.starts_with(&text[..text.rfind("</robot>").unwrap()]));
     }
 }
+
+/// `identify --torque-scale` now applies to CSVs: data logged at half the torque, scaled by 2
+/// (exact in binary), identify exactly as the original.
+#[test]
+fn identify_torque_scale_scales_csv_torque() {
+    let set = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/data/sim/planar2_paper_friction"
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let mut tr =
+        Trajectory::from_path(format!("{set}/excite_noisy.csv.gz").as_ref(), Some(2)).unwrap();
+    tr.tau.as_mut().unwrap().iter_mut().for_each(|v| *v *= 0.5);
+    let half = dir.path().join("half.csv");
+    tr.write_csv(&mut std::fs::File::create(&half).unwrap())
+        .unwrap();
+    let val = format!("{set}/validate_noisy.csv.gz");
+    let s = |p: &std::path::Path| p.to_str().unwrap().to_string();
+    let (a, b) = (dir.path().join("a"), dir.path().join("b"));
+    let o = dynid(&[
+        "identify",
+        "--arm",
+        "planar2",
+        "--data",
+        &format!("{set}/excite_noisy.csv.gz"),
+        "--validate",
+        &val,
+        "--effects",
+        "viscous,coulomb",
+        "--cutoff",
+        "5",
+        "--out",
+        &s(&a),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = dynid(&[
+        "identify",
+        "--arm",
+        "planar2",
+        "--data",
+        &s(&half),
+        "--validate",
+        &val,
+        "--effects",
+        "viscous,coulomb",
+        "--cutoff",
+        "5",
+        "--torque-scale",
+        "2,2",
+        "--out",
+        &s(&b),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let read = |d: &std::path::Path| {
+        InertialParams::from_path(&d.join("identified.params.toml"), 2, &Default::default())
+            .unwrap()
+            .full_vector()
+    };
+    assert_close(
+        &read(&b),
+        &read(&a),
+        1e-9,
+        "identify on torque/2 with --torque-scale 2",
+    );
+}
