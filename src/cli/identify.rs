@@ -20,7 +20,7 @@ use crate::log::Log;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Arm name (see `dynid arms`) or path to a D-H table (.toml).
+    /// Arm name (see `dynid arms`), path to a D-H table (.toml) or a URDF (.urdf, imported as `import-urdf` does).
     #[arg(long)]
     pub arm: String,
     /// Training data (CSV or .csv.gz: t, q, [dq], [ddq], tau; or a ROS 2 bag, .mcap, of
