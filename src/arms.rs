@@ -120,6 +120,21 @@ pub fn resolve_urdf(spec: &str) -> Result<Option<crate::urdf::Imported>, ArmErro
     Ok(Some(crate::urdf::import_file(path, &opts)?))
 }
 
+/// The URDF behind `--arm` (`None` for a generated arm or a hand-written table): the `.urdf`
+/// itself, or the `[source]` an `import-urdf` table records.
+pub fn urdf_source(spec: &str) -> Result<Option<crate::urdf::roundtrip::UrdfSource>, String> {
+    let path = std::path::Path::new(spec);
+    let ext = path.extension().map(|e| e.to_ascii_lowercase());
+    match ext.as_ref().and_then(|e| e.to_str()) {
+        Some("urdf") => Ok(Some(crate::urdf::roundtrip::UrdfSource {
+            path: path.to_path_buf(),
+            opts: crate::urdf::ImportOptions::default(),
+        })),
+        Some("toml") => crate::urdf::roundtrip::UrdfSource::of_table(path),
+        _ => Ok(None),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -40,7 +40,8 @@ use crate::tomlread::{Fail, Src, TableView};
 /// Most joints a table may have (the generator's unrolled kernels grow as O(n²)–O(n³)).
 pub const MAX_JOINTS: usize = 12;
 
-const TOP_KEYS: [&str; 4] = ["name", "convention", "gravity", "joint"];
+/// `source`: the URDF `import-urdf` read (see `crate::urdf::roundtrip::UrdfSource`).
+const TOP_KEYS: [&str; 5] = ["name", "convention", "gravity", "joint", "source"];
 const JOINT_KEYS: [&str; 11] = [
     "name", "kind", "alpha", "a", "d", "theta", "q_min", "q_max", "dq_max", "ddq_max", "tau_max",
 ];

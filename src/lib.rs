@@ -28,6 +28,7 @@ pub mod model;
 pub mod pack;
 pub mod paper;
 pub mod params;
+pub mod payload;
 pub mod physical;
 pub mod progress;
 pub mod reference;

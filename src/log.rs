@@ -257,6 +257,35 @@ impl Log {
         }
     }
 
+    /// This log with its torque multiplied by `scale[j]` per joint (drives that log current:
+    /// `torque = gain × current`); a copy, spilled as the original would be.
+    pub fn scale_torque(&self, scale: &[f64]) -> Result<Log, DataError> {
+        let Some(off) = self.layout.tau_offset() else {
+            return Ok(self.clone());
+        };
+        let mut w = TableWriter::new(self.layout.width(), SPILL_ROWS);
+        let mut buf = Vec::with_capacity(self.layout.width());
+        let mut res = Ok(());
+        self.rows(0, self.len(), |row| {
+            if res.is_err() {
+                return;
+            }
+            buf.clear();
+            buf.extend_from_slice(row);
+            for (x, s) in buf[off..].iter_mut().zip(scale) {
+                *x *= s;
+            }
+            res = w.push(&buf);
+        });
+        let temp = |e: std::io::Error| DataError {
+            loc: Location::file(&self.source),
+            kind: Box::new(DataErrorKind::TempFile(e)),
+        };
+        res.map_err(temp)?;
+        let table = w.finish().map_err(temp)?;
+        Ok(Log::from_table(self.source.clone(), self.layout, table))
+    }
+
     /// Calls `f` with each of rows `r0..r1` in turn (the canonical row, see [`RowLayout`]).
     pub fn rows(&self, r0: usize, r1: usize, f: impl FnMut(&[f64])) {
         let r1 = r1.min(self.len());

@@ -24,8 +24,8 @@ pub struct BagArgs {
     /// (default: the D-H table's joint `name`s, which `import-urdf` writes).
     #[arg(long)]
     pub joints: Option<String>,
-    /// Bags: torque = k · effort per joint, e.g. `0.5,0.5` for drives that publish current
-    /// (default 1).
+    /// Torque = k · logged torque (a bag's effort, a CSV's tau) per joint, e.g. `0.5,0.5` for
+    /// drives that log current, or the drive gains `dynid payload --mass` calibrates (default 1).
     #[arg(long)]
     pub torque_scale: Option<String>,
 }
@@ -55,9 +55,9 @@ impl BagArgs {
 
     /// An error if a bag option was given for `path`, which is not a bag.
     pub fn reject_for_csv(&self, path: &Path) -> Result<(), InputError> {
-        if self.topic.is_some() || self.joints.is_some() || self.torque_scale.is_some() {
+        if self.topic.is_some() || self.joints.is_some() {
             return Err(InputError(format!(
-                "{}: --topic, --joints and --torque-scale are for ROS 2 bags (.mcap), and this is not one — drop them for a CSV",
+                "{}: --topic and --joints are for ROS 2 bags (.mcap), and this is not one — drop them for a CSV",
                 path.display()
             )));
         }
@@ -76,7 +76,15 @@ pub fn open_log(
     let dof = arm.dof();
     if !bag::is_bag(path) {
         bag_args.reject_for_csv(path)?;
-        return Ok(Log::open(path, Some(dof))?);
+        let log = Log::open(path, Some(dof))?;
+        return Ok(match &bag_args.torque_scale {
+            Some(s) => {
+                let k = bag::parse_torque_scale(s, dof)
+                    .map_err(|e| InputError(format!("--torque-scale: {e}")))?;
+                log.scale_torque(&k)?
+            }
+            None => log,
+        });
     }
     let names = arm.dh_table().ok().and_then(|t| t.joint_names());
     let opts = bag_args.options(dof, need_effort, path)?;

@@ -11,7 +11,7 @@ use dynid::params::{InertialParams, ParamsOptions};
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Arm name (see `dynid arms`) or path to a D-H table (.toml).
+    /// Arm name (see `dynid arms`), path to a D-H table (.toml) or a URDF (.urdf, imported as `import-urdf` does).
     #[arg(long)]
     pub arm: String,
     /// Inertial parameters (TOML); without it the links are massless.

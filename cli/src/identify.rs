@@ -20,7 +20,7 @@ use dynid::log::Log;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Arm name (see `dynid arms`) or path to a D-H table (.toml).
+    /// Arm name (see `dynid arms`), path to a D-H table (.toml) or a URDF (.urdf, imported as `import-urdf` does).
     #[arg(long)]
     pub arm: String,
     /// Training data (CSV or .csv.gz: t, q, [dq], [ddq], tau; or a ROS 2 bag, .mcap, of
@@ -229,8 +229,27 @@ pub fn run(args: &Args) -> Result<()> {
     let table = arm.dh_table().ok();
     let files = dynid::report::write(&args.out, &outcome, &command, table.as_ref())
         .context("writing the report")?;
+    write_roundtrip(args, &outcome)?;
     print_summary(&outcome);
     eprintln!("wrote {} files to {}", files.len(), args.out.display());
+    Ok(())
+}
+
+/// An arm from a URDF: `identified.urdf` is that URDF with the identified inertials.
+fn write_roundtrip(args: &Args, outcome: &Outcome) -> Result<()> {
+    let Some(source) = crate::arms::urdf_source(&args.arm).map_err(InputError)? else {
+        return Ok(());
+    };
+    let Some(rt) = crate::report::physical::urdf_roundtrip(outcome, &source) else {
+        return Ok(());
+    };
+    let rt = rt.context("writing identified.urdf into the arm's URDF")?;
+    for n in &rt.notes {
+        eprintln!("note: identified.urdf: {n}");
+    }
+    let path = args.out.join("identified.urdf");
+    crate::io::atomic_write(&path, |w| w.write_all(rt.urdf.as_bytes()))
+        .with_context(|| format!("writing {}", path.display()))?;
     Ok(())
 }
 

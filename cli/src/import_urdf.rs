@@ -63,7 +63,12 @@ pub fn run(args: &Args) -> Result<()> {
         gravity: args.gravity,
         name: args.name.clone(),
     };
-    let arm = import_file(&args.urdf, &opts)?;
+    let mut arm = import_file(&args.urdf, &opts)?;
+    let source = crate::urdf::roundtrip::UrdfSource {
+        path: args.urdf.clone(),
+        opts: opts.clone(),
+    };
+    arm.dh_toml.push_str(&source.table_text());
     let (dh, params) = arm.write(&args.out)?;
     if args.json {
         let summary = Summary {

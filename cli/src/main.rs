@@ -21,6 +21,7 @@ mod export_urdf;
 mod identify;
 mod import_urdf;
 mod paper;
+mod payload;
 mod simulate;
 mod torque;
 
@@ -54,6 +55,8 @@ pub enum Command {
     Paper(paper::Args),
     /// Optimise an excitation trajectory (GA): Logistic (the paper's) or Fourier.
     Excite(excite::Args),
+    /// Identify the flange payload (mass, centre of mass, inertia) and, with its mass known, the drive gains.
+    Payload(payload::Args),
     /// Closed-loop simulation (RK4 plant + RHFTC/CTC/PD) along a trajectory, to CSV.
     Simulate(simulate::Args),
 }
@@ -82,6 +85,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Some(Command::Paper(args)) => paper::run(&args),
         Some(Command::Excite(args)) => excite::run(&args),
         Some(Command::Simulate(args)) => simulate::run(&args),
+        Some(Command::Payload(args)) => payload::run(&args),
         Some(Command::Arms(args)) => arms::run(&args),
         Some(Command::Bench(args)) => bench::run(&args),
         Some(Command::BenchModels(args)) => bench_models::run(&args),

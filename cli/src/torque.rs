@@ -22,7 +22,7 @@ use dynid::reference::RefModel;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Arm name (see `dynid arms`) or path to a D-H table (.toml).
+    /// Arm name (see `dynid arms`), path to a D-H table (.toml) or a URDF (.urdf, imported as `import-urdf` does).
     #[arg(long)]
     pub arm: String,
     /// Inertial parameters (TOML: one [[link]] per joint, optional [effects]).

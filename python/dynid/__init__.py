@@ -24,19 +24,22 @@ from typing import Any
 
 import numpy as np
 
-from ._dynid import Arm, DynidError, __version__, arms, read_params
+from ._dynid import Arm, DynidError, PayloadResult, __version__, arms, read_params
 from ._dynid import _identify as _native_identify
 from ._dynid import _import_urdf as _native_import_urdf
+from ._dynid import _payload as _native_payload
 
 __all__ = [
     "Arm",
     "DynidError",
     "IdentifyResult",
     "ImportedURDF",
+    "PayloadResult",
     "__version__",
     "arms",
     "identify",
     "import_urdf",
+    "payload",
     "read_params",
 ]
 
@@ -296,4 +299,50 @@ def import_urdf(
         chain=list(d["chain"]),
         notes=list(d["notes"]),
         warnings=list(d["warnings"]),
+    )
+
+
+def payload(
+    arm: Arm | str | os.PathLike[str],
+    params: str | os.PathLike[str],
+    data: Any,
+    unloaded: Any = None,
+    *,
+    mass: float | None = None,
+    torque_scale: Sequence[float] | None = None,
+    cutoff: float | str = "auto",
+    derivative: str = "butterworth",
+    out: str | os.PathLike[str] | None = None,
+) -> PayloadResult:
+    """The flange payload's mass, centre of mass and inertia (last link's frame, each with σ) — ``dynid payload``.
+
+    ``params``: the identified arm (``identified.params.toml``). ``data``: one loaded run or a list (paths, DataFrames,
+    dicts or arrays as for ``identify``); ``unloaded``: the same motions without the payload, one per run (aligned in
+    time automatically). ``mass``: known mass (kg) — then only COM and inertia, plus ``torque_scale`` per joint.
+    ``out``: also write payload.json, payload.params.toml, loaded.params.toml, payload.urdf, report.md there.
+    Raises ``DynidError`` with the CLI's message."""
+    a = _as_arm(arm)
+    items = data if isinstance(data, list) else [data]
+    runs = [_data_arg(x, f"data[{k}]", a.dof) for k, x in enumerate(items)]
+    twins_in = [] if unloaded is None else (unloaded if isinstance(unloaded, list) else [unloaded])
+    twins = [_data_arg(x, f"unloaded[{k}]", a.dof) for k, x in enumerate(twins_in)]
+    if isinstance(cutoff, str):
+        if cutoff.strip() != "auto":
+            raise ValueError(f'cutoff: expected a number of Hz or "auto", got {cutoff!r}')
+        cutoff_hz = None
+    else:
+        cutoff_hz = float(cutoff)
+    command = f"dynid.payload({a.name!r}, params={os.fspath(params)!r}, mass={mass!r})"
+    scale = None if torque_scale is None else [float(v) for v in torque_scale]
+    return _native_payload(
+        a,
+        os.fspath(params),
+        runs,
+        twins,
+        mass,
+        scale,
+        cutoff_hz,
+        derivative,
+        None if out is None else os.fspath(out),
+        command,
     )

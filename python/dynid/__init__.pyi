@@ -187,3 +187,31 @@ def import_urdf(
     gravity: Sequence[float] | None = None,
     name: str | None = None,
 ) -> ImportedURDF: ...
+
+class PayloadResult:
+    mass: float
+    sigma_mass: float
+    com: np.ndarray
+    sigma_com: np.ndarray
+    inertia: np.ndarray
+    sigma_inertia: np.ndarray
+    params: np.ndarray
+    torque_scale: np.ndarray | None
+    torque_scale_sigma: np.ndarray | None
+    uncalibrated_joints: list[int]
+    warnings: list[str]
+    files: list[str]
+    json: str
+
+def payload(
+    arm: Arm | str | os.PathLike[str],
+    params: str | os.PathLike[str],
+    data: Any,
+    unloaded: Any = None,
+    *,
+    mass: float | None = None,
+    torque_scale: Sequence[float] | None = None,
+    cutoff: float | str = "auto",
+    derivative: str = "butterworth",
+    out: str | os.PathLike[str] | None = None,
+) -> PayloadResult: ...

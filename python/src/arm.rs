@@ -99,6 +99,14 @@ impl Arm {
     }
 
     /// What `dynid::identify` takes.
+    /// The file the arm's table came from (a URDF, or a D-H TOML that may record one).
+    pub fn urdf_origin(&self) -> Option<String> {
+        match &self.inner.origin {
+            Origin::Table { origin, .. } => Some(origin.clone()),
+            Origin::Generated => None,
+        }
+    }
+
     pub fn source(&self) -> ArmSource {
         match (&self.inner.dynamics, &self.inner.origin) {
             (Dynamics::Generated(m), _) => ArmSource::Generated(*m),

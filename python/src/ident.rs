@@ -55,7 +55,7 @@ pub struct Ran {
 }
 
 /// Streams `values` (`rows × names.len()`) as CSV text.
-struct CsvText<'a> {
+pub(crate) struct CsvText<'a> {
     values: &'a [f64],
     width: usize,
     row: usize,
@@ -64,7 +64,7 @@ struct CsvText<'a> {
 }
 
 impl<'a> CsvText<'a> {
-    fn new(names: &[String], values: &'a [f64]) -> Self {
+    pub(crate) fn new(names: &[String], values: &'a [f64]) -> Self {
         let mut buf = names.join(",").into_bytes();
         buf.push(b'\n');
         CsvText {

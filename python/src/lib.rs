@@ -8,6 +8,7 @@ mod arm;
 mod batch;
 mod ident;
 mod input;
+mod payload;
 mod pool;
 
 use std::path::{Path, PathBuf};
@@ -164,6 +165,37 @@ fn _identify(
     Ok((ran.json, ran.files, ran.warnings))
 }
 
+/// The native part of ``dynid.payload``: a ``PayloadResult``.
+#[pyfunction]
+#[pyo3(signature = (arm, params, data, unloaded, mass, torque_scale, cutoff, derivative, out, command))]
+#[allow(clippy::too_many_arguments)]
+fn _payload(
+    py: Python<'_>,
+    arm: &Arm,
+    params: PathBuf,
+    data: Vec<DataArg<'_>>,
+    unloaded: Vec<DataArg<'_>>,
+    mass: Option<f64>,
+    torque_scale: Option<Vec<f64>>,
+    cutoff: Option<f64>,
+    derivative: String,
+    out: Option<PathBuf>,
+    command: String,
+) -> PyResult<payload::PayloadResult> {
+    let loaded = data.iter().map(source).collect::<PyResult<Vec<_>>>()?;
+    let twins = unloaded.iter().map(source).collect::<PyResult<Vec<_>>>()?;
+    let opt = payload::Options {
+        mass,
+        torque_scale,
+        cutoff,
+        derivative,
+        out,
+        command,
+    };
+    py.detach(|| payload::run(arm, &params, &loaded, &twins, &opt))
+        .map_err(payload::err)
+}
+
 /// Full parameters of a params TOML file (``dynid torque --params``), ``(10·n,)``.
 #[pyfunction]
 fn read_params<'py>(
@@ -189,6 +221,8 @@ fn _dynid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(arms, m)?)?;
     m.add_function(wrap_pyfunction!(_import_urdf, m)?)?;
     m.add_function(wrap_pyfunction!(_identify, m)?)?;
+    m.add_function(wrap_pyfunction!(_payload, m)?)?;
+    m.add_class::<payload::PayloadResult>()?;
     m.add_function(wrap_pyfunction!(read_params, m)?)?;
     m.add_function(wrap_pyfunction!(arm::_restore_arm, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;

@@ -66,6 +66,16 @@ pub fn urdf(o: &Outcome, table: Option<&DhTable>) -> Option<Result<String, Strin
     )
 }
 
+/// `identified.urdf` for an arm that came from a URDF: that file with the consistent inertials
+/// and `<dynamics>` spliced in (see [`crate::urdf::roundtrip`]); none without a consistent
+/// estimate.
+pub fn urdf_roundtrip(
+    o: &Outcome,
+    source: &crate::urdf::roundtrip::UrdfSource,
+) -> Option<Result<crate::urdf::roundtrip::RoundTrip, crate::urdf::UrdfError>> {
+    Some(source.rewrite(&params(o)?))
+}
+
 /// `report.json`'s `physical` object.
 pub fn json(o: &Outcome) -> Value {
     match (&o.physical, &o.physical_error) {

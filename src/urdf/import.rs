@@ -130,6 +130,7 @@ fn convert(text: &str, origin: &str, opts: &ImportOptions) -> Result<Imported, K
         .collect();
     let dh_toml = dh_text(&table, &tree, &chain, &file, base, tip, opts);
     let params_toml = params_text(&links, &tree, &chain, &owner, &file, &name, nonphysical);
+    let placement = placements(&tree, &owner, &poses, &frames, &chain);
 
     // What we write must load with the project's own loaders.
     let check = DhTable::from_str(&dh_toml, &format!("{name}.toml"))
@@ -151,7 +152,52 @@ fn convert(text: &str, origin: &str, opts: &ImportOptions) -> Result<Imported, K
         chain: chain_names,
         notes,
         warnings,
+        placement,
     })
+}
+
+/// Where each D-H link sits in its URDF links (what `roundtrip` inverts): frame `F_k` in the
+/// frame of the link joint `k` moves, and the other bodies lumped into D-H link `k`.
+fn placements(
+    tree: &Tree<'_>,
+    owner: &[Owner],
+    poses: &[Pose],
+    frames: &[Pose],
+    chain: &[usize],
+) -> Vec<super::Placement> {
+    chain
+        .iter()
+        .enumerate()
+        .map(|(k, &j)| {
+            let moved = tree.ends[j].1;
+            let others = (0..owner.len())
+                .filter(|&l| owner[l] == Owner::Link(k) && l != moved)
+                .map(|l| {
+                    let link = &tree.robot.links[l];
+                    (link.name.clone(), body_in(link, &poses[l], &frames[k]))
+                })
+                .collect();
+            super::Placement {
+                link: tree.link_name(moved).to_string(),
+                dh_in_link: poses[moved].inverse().then(&frames[k]),
+                others,
+            }
+        })
+        .collect()
+}
+
+/// A URDF link's body in frame `frame` (both poses in base coordinates).
+fn body_in(link: &urdf_rs::Link, pose: &Pose, frame: &Pose) -> Body {
+    let i = &link.inertial;
+    let n = &i.inertia;
+    let inertial = pose.then(&Pose::from_xyz_rpy(*i.origin.xyz, *i.origin.rpy));
+    let in_frame = frame.inverse().then(&inertial);
+    let local = [n.ixx, n.ixy, n.ixz, n.iyy, n.iyz, n.izz];
+    Body {
+        m: i.mass.value,
+        com: in_frame.p,
+        inertia: in_frame.r * tensor(local) * in_frame.r.transpose(),
+    }
 }
 
 /// The chain's axes at the zero pose, their D-H frames `F_1..F_n` (base coordinates) and rows.

@@ -57,11 +57,13 @@
 //! Checked against Pinocchio's RNEA on 22 robots of example-robot-data (UR, Panda, Kinova,
 //! xArm, Z1, SO-100, TIAGo, PR2, Baxter, ...): `tests/pinocchio/check_urdf.py`.
 
+pub mod attach;
 mod export;
 mod frames;
 mod geom;
 mod import;
 mod lump;
+pub mod roundtrip;
 mod tree;
 
 use std::fmt;
@@ -111,6 +113,18 @@ pub struct Imported {
     pub notes: Vec<String>,
     /// Suspicious input that was accepted (massless links, non-physical inertias).
     pub warnings: Vec<String>,
+    /// Per D-H link, where it sits in the URDF (for [`roundtrip`]).
+    pub(crate) placement: Vec<Placement>,
+}
+
+/// D-H link `k` in URDF terms: the link its joint moves, D-H frame `k` in that link's frame,
+/// and the other URDF bodies lumped into it (fixed below it, or on locked joints), in D-H frame
+/// `k`.
+#[derive(Debug, Clone)]
+pub(crate) struct Placement {
+    pub link: String,
+    pub dh_in_link: geom::Pose,
+    pub others: Vec<(String, lump::Body)>,
 }
 
 impl Imported {

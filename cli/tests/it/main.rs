@@ -11,6 +11,8 @@ mod kernels;
 mod loaders;
 mod new_arm;
 mod paper;
+mod payload;
 mod physical;
 mod reference;
+mod roundtrip;
 mod urdf;

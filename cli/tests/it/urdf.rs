@@ -51,7 +51,7 @@ struct TLink {
 
 /// Link 0 is the root; link `i ≥ 1` hangs from `joints[i - 1]`.
 #[derive(Debug, Clone)]
-struct TRobot {
+pub(super) struct TRobot {
     links: Vec<TLink>,
     joints: Vec<TJoint>,
 }
@@ -73,7 +73,7 @@ fn f(v: f64) -> String {
 }
 
 impl TRobot {
-    fn urdf(&self) -> String {
+    pub(super) fn urdf(&self) -> String {
         let mut s = String::from("<?xml version=\"1.0\"?>\n<robot name=\"random\">\n");
         for (i, l) in self.links.iter().enumerate() {
             match l.inertial {
@@ -241,7 +241,7 @@ fn random_inertial(rng: &mut impl Rng) -> TInertial {
 /// A random tree: a chain of `dof` movable joints with fixed links between some of them, a
 /// locked branch (revolute joint + body) on a middle link, a body fixed to the base; axes along
 /// ±x/±y/±z or unaligned, frames aligned (so axes are often parallel or intersecting) or not.
-fn random_robot(rng: &mut impl Rng, dof: usize) -> TRobot {
+pub(super) fn random_robot(rng: &mut impl Rng, dof: usize) -> TRobot {
     let mut links = vec![TLink {
         inertial: Some(random_inertial(rng)),
     }];
@@ -365,7 +365,7 @@ fn random_robot(rng: &mut impl Rng, dof: usize) -> TRobot {
     TRobot { links, joints }
 }
 
-fn tip_of(robot: &TRobot) -> String {
+pub(super) fn tip_of(robot: &TRobot) -> String {
     let last = robot
         .joints
         .iter()
@@ -374,7 +374,13 @@ fn tip_of(robot: &TRobot) -> String {
     format!("l{}", last + 1)
 }
 
-fn reference_torques(table: &DhTable, p: &[f64], q: &[f64], dq: &[f64], ddq: &[f64]) -> Vec<f64> {
+pub(super) fn reference_torques(
+    table: &DhTable,
+    p: &[f64],
+    q: &[f64],
+    dq: &[f64],
+    ddq: &[f64],
+) -> Vec<f64> {
     let model = RefModel::new(table);
     let mut ws = model.workspace();
     let mut tau = vec![0.0; table.dof()];
@@ -644,7 +650,7 @@ fn import(
 }
 
 /// A hand with two mimic fingers at the tip of a 2-joint arm, and a camera on the base.
-fn arm_with_gripper() -> String {
+pub(super) fn arm_with_gripper() -> String {
     urdf_of(&[
         ("j1", "revolute", "base", "l1", ""),
         ("j2", "revolute", "l1", "l2", ""),
