@@ -237,10 +237,10 @@ pub fn run(args: &Args) -> Result<()> {
 
 /// An arm from a URDF: `identified.urdf` is that URDF with the identified inertials.
 fn write_roundtrip(args: &Args, outcome: &Outcome) -> Result<()> {
-    let Some(source) = crate::arms::urdf_source(&args.arm).map_err(InputError)? else {
+    let Some(source) = dynid::arms::urdf_source(&args.arm).map_err(InputError)? else {
         return Ok(());
     };
-    let Some(rt) = crate::report::physical::urdf_roundtrip(outcome, &source) else {
+    let Some(rt) = dynid::report::physical::urdf_roundtrip(outcome, &source) else {
         return Ok(());
     };
     let rt = rt.context("writing identified.urdf into the arm's URDF")?;
@@ -248,7 +248,7 @@ fn write_roundtrip(args: &Args, outcome: &Outcome) -> Result<()> {
         eprintln!("note: identified.urdf: {n}");
     }
     let path = args.out.join("identified.urdf");
-    crate::io::atomic_write(&path, |w| w.write_all(rt.urdf.as_bytes()))
+    dynid::io::atomic_write(&path, |w| w.write_all(rt.urdf.as_bytes()))
         .with_context(|| format!("writing {}", path.display()))?;
     Ok(())
 }

@@ -64,7 +64,7 @@ pub fn run(args: &Args) -> Result<()> {
         name: args.name.clone(),
     };
     let mut arm = import_file(&args.urdf, &opts)?;
-    let source = crate::urdf::roundtrip::UrdfSource {
+    let source = dynid::urdf::roundtrip::UrdfSource {
         path: args.urdf.clone(),
         opts: opts.clone(),
     };

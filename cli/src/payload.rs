@@ -1,17 +1,17 @@
 //! `dynid payload --arm A --params P --data LOADED.csv [--unloaded TWIN.csv] [--mass M]
 //! [--torque-scale s1,..] --out DIR`: the flange payload's inertial parameters (and, with
-//! `--mass`, the drive gains); all logic is in [`crate::payload`].
+//! `--mass`, the drive gains); all logic is in [`dynid::payload`].
 
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 
-use super::InputError;
-use crate::arms::resolve;
-use crate::data::Trajectory;
-use crate::params::{InertialParams, ParamsOptions};
-use crate::payload::{identify_payload_with, output, PayloadError, PayloadOptions};
+use crate::InputError;
+use dynid::arms::resolve;
+use dynid::data::Trajectory;
+use dynid::params::{InertialParams, ParamsOptions};
+use dynid::payload::{identify_payload_with, output, PayloadError, PayloadOptions};
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -40,7 +40,7 @@ pub struct Args {
     pub cutoff: String,
     /// Without dq/ddq columns: the derivative estimator.
     #[arg(long, value_enum, default_value = "butterworth")]
-    pub derivative: super::identify::DerivativeArg,
+    pub derivative: crate::identify::DerivativeArg,
     /// Output directory.
     #[arg(long, default_value = "payload_out")]
     pub out: PathBuf,
@@ -74,7 +74,7 @@ pub fn run(args: &Args) -> Result<()> {
     let params = InertialParams::from_path(&args.params, dof, &ParamsOptions::default())?;
     let torque_scale = match &args.torque_scale {
         Some(s) => Some(
-            crate::bag::parse_torque_scale(s, dof)
+            dynid::bag::parse_torque_scale(s, dof)
                 .map_err(|e| InputError(format!("--torque-scale: {e}")))?,
         ),
         None => None,
@@ -88,12 +88,12 @@ pub fn run(args: &Args) -> Result<()> {
     let opts = PayloadOptions {
         mass: args.mass,
         torque_scale,
-        derivative: crate::derivative::Options {
+        derivative: dynid::derivative::Options {
             method: args.derivative.method(),
-            cutoff_hz: super::identify::parse_cutoff(&args.cutoff)?,
+            cutoff_hz: crate::identify::parse_cutoff(&args.cutoff)?,
         },
     };
-    let progress = super::bar::Bars::progress();
+    let progress = crate::bar::Bars::progress();
     let est = identify_payload_with(
         &table,
         &params,
@@ -106,7 +106,7 @@ pub fn run(args: &Args) -> Result<()> {
         PayloadError::Numerical(m) => anyhow::anyhow!(m),
         e => InputError(e.to_string()).into(),
     })?;
-    let source = crate::arms::urdf_source(&args.arm).map_err(InputError)?;
+    let source = dynid::arms::urdf_source(&args.arm).map_err(InputError)?;
     let files = output::write_all(&args.out, &est, &params, source.as_ref(), &command(args))
         .map_err(anyhow::Error::msg)?;
     for w in &est.warnings {

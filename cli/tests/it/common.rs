@@ -65,7 +65,7 @@ theta = 0.0
 
 /// Every table under `arms/`, plus the built-in test tables.
 pub fn all_tables() -> Vec<DhTable> {
-    let dir = concat!(concat!(env!("CARGO_MANIFEST_DIR"), "/.."), "/arms");
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/..", "/arms");
     let mut paths: Vec<_> = std::fs::read_dir(dir)
         .expect("arms/ exists")
         .map(|e| e.expect("readable dir entry").path())

@@ -15,7 +15,8 @@ use rand::Rng;
 use crate::common::*;
 
 fn puma() -> DhTable {
-    DhTable::from_path(concat!(env!("CARGO_MANIFEST_DIR"), "/arms/puma560.toml").as_ref()).unwrap()
+    DhTable::from_path(concat!(env!("CARGO_MANIFEST_DIR"), "/..", "/arms/puma560.toml").as_ref())
+        .unwrap()
 }
 
 /// A payload: `(φ about the last link's origin, mass, com)`.
@@ -546,7 +547,7 @@ fn the_cli_writes_payload_json_params_and_report() {
     std::fs::write(&params, c.identified().to_toml(&[])).unwrap();
     let out = dir.path().join("p");
     let s = |p: &std::path::Path| p.to_str().unwrap().to_string();
-    let arm = concat!(env!("CARGO_MANIFEST_DIR"), "/arms/puma560.toml");
+    let arm = concat!(env!("CARGO_MANIFEST_DIR"), "/..", "/arms/puma560.toml");
     let o = dynid(&[
         "payload",
         "--arm",
@@ -646,7 +647,7 @@ fn the_payload_link_imports_back_as_the_payload_on_the_last_link() {
         })
         .collect();
     let tiago = concat!(
-        env!("CARGO_MANIFEST_DIR"),
+        concat!(env!("CARGO_MANIFEST_DIR"), "/.."),
         "/data/real/tiago_figaroh/tiago.urdf"
     );
     cases.push((
@@ -681,7 +682,7 @@ fn the_payload_link_imports_back_as_the_payload_on_the_last_link() {
 #[test]
 fn identify_torque_scale_scales_csv_torque() {
     let set = concat!(
-        env!("CARGO_MANIFEST_DIR"),
+        concat!(env!("CARGO_MANIFEST_DIR"), "/.."),
         "/data/sim/planar2_paper_friction"
     );
     let dir = tempfile::tempdir().unwrap();

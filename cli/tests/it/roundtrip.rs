@@ -107,7 +107,7 @@ fn check(text: &str, origin: &str, opts: &ImportOptions, rng: &mut impl Rng) -> 
 #[test]
 fn tiago_keeps_everything_but_the_moving_inertials() {
     let path = concat!(
-        env!("CARGO_MANIFEST_DIR"),
+        concat!(env!("CARGO_MANIFEST_DIR"), "/.."),
         "/data/real/tiago_figaroh/tiago.urdf"
     );
     let text = std::fs::read_to_string(path).unwrap();
