@@ -5,6 +5,7 @@ mod bag;
 mod cli;
 mod common;
 mod eval;
+mod excite;
 mod identify;
 mod kernels;
 mod loaders;
