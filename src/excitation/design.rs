@@ -191,6 +191,8 @@ pub enum DesignError {
     Settings(String),
     #[error("no feasible design found: {}", describe(.0))]
     Infeasible(Vec<Violation>),
+    #[error("the best design leaves the observation matrix singular ({0} columns): some columns are not excited by any motion within these limits — widen the limits, lengthen --period, or drop effects with --effects")]
+    Singular(usize),
 }
 
 fn describe(v: &[Violation]) -> String {
@@ -656,6 +658,9 @@ pub fn design(
         .obs
         .of_motion(&mut s, excitation.as_motion(), cfg.rate);
     let conditioning = conditioning(&w);
+    if !conditioning.cond.is_finite() {
+        return Err(DesignError::Singular(w.ncols()));
+    }
     Ok(Design {
         excitation,
         columns: problem.obs.columns().to_vec(),

@@ -70,18 +70,41 @@ impl Observation {
             |q, dq, ddq, out| base.eval(&mut s, q, dq, ddq, out),
             &names,
         );
-        let terms: Vec<Term> = all
+        let mut dropped = dropped;
+        let mut terms: Vec<Term> = all
             .into_iter()
             .filter(|t| !dropped.iter().any(|(d, _)| d == t))
             .collect();
         let mut names = names;
         names.extend(terms.iter().map(Term::label));
-        Ok(Observation {
+        let mut obs = Observation {
             base,
-            terms,
-            dropped,
+            terms: terms.clone(),
+            dropped: Vec::new(),
             names,
-        })
+        };
+        // Effects dependent only together with others (a vertical prismatic joint's armature and
+        // offset sum to its mass column, `M·(q̈ + g)`): drop, in order, each effect column that the
+        // columns before it span on random states with random velocities.
+        let (mut q, mut dq, mut ddq) = (Vec::new(), Vec::new(), Vec::new());
+        for [a, b, c] in &states {
+            q.extend_from_slice(a);
+            dq.extend_from_slice(b);
+            ddq.extend_from_slice(c);
+        }
+        let w = obs.matrix(&mut s, &q, &dq, &ddq);
+        let norms: Vec<f64> = (0..w.ncols()).map(|k| w.column(k).norm()).collect();
+        let dep = crate::identify::ls::dependent_columns(&w, &norms);
+        let late: Vec<usize> = dep.iter().copied().filter(|&k| k >= nb).collect();
+        for &k in late.iter().rev() {
+            let t = terms.remove(k - nb);
+            dropped.push((t, vec!["the columns before it".to_string()]));
+        }
+        obs.names.truncate(nb);
+        obs.names.extend(terms.iter().map(Term::label));
+        obs.terms = terms;
+        obs.dropped = dropped;
+        Ok(obs)
     }
 
     /// Column names: base parameters, then effect terms (e.g. `viscous2`).
