@@ -10,7 +10,7 @@
 //! analytic. The search therefore never leaves the position, velocity and acceleration limits;
 //! torques (through the arm's inverse dynamics with the given parameters) and the tool height
 //! (`keep_above`) are penalised instead, and the result is re-checked on a 1 kHz grid with the
-//! same between-sample bound ([`Design::check`]).
+//! same between-sample bound ([`Problem::check`]).
 //!
 //! **Cost.** `log cond` (or `−log det / columns`) of the observation matrix sampled at
 //! `search_rate` (the objective is smooth in time, so a coarser grid ranks designs as the full
