@@ -1,136 +1,228 @@
-//! `dynid excite --arm A [--kind logistic|fourier] [--seed N] [--generations N] [--out F]`:
-//! optimise an excitation trajectory with the paper's GA and write it as JSON (readable by
-//! `dynid simulate --trajectory F`).
-//!
-//! `logistic` is the paper's step-by-step design (eq. 17), which relies on the block-triangular
-//! base regressor of the paper's 2-DOF arm; `fourier` works for any generated arm (all joints move
-//! at once, cost = condition number of the stacked base regressor). Limits are the paper's
-//! (`0 < q < π`, `|q̇| < π/6`, `|q̈| < π/15`).
+//! `dynid excite --arm A --out DIR [--kind fourier|logistic] [limits…]`: designs an excitation
+//! trajectory for any arm under its own limits and writes `DIR/trajectory.csv`,
+//! `DIR/excitation.json` and `DIR/report.md` (see `dynid::excitation::design`). Exit code 0 only
+//! for a feasible design; 1 when none was found (nothing is written), 2 for bad input.
 
 use std::path::PathBuf;
+use std::time::Duration;
 
 use anyhow::Result;
-use serde_json::json;
 
-use crate::{write_output, InputError};
-use dynid::arms::{resolve, ArmSource};
-use dynid::excitation::{
-    minimize, FourierProblem, GaConfig, Limits, LogisticProblem, LogisticSettings,
-};
-use dynid::trajectory::logistic::Logistic;
-use dynid::trajectory::TrajectorySpec;
+use crate::InputError;
+use dynid::arms::{resolve, resolve_urdf};
+use dynid::effects::Effect;
+use dynid::excitation::design::{design, DesignConfig, DesignError, Family};
+use dynid::excitation::limits::{self, LimitSources, LimitsFile, Overrides};
+use dynid::excitation::objective::ObjectiveKind;
+use dynid::excitation::output;
+use dynid::params::{InertialParams, ParamsOptions};
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum Kind {
-    Logistic,
     Fourier,
+    Logistic,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Objective {
+    Cond,
+    Logdet,
 }
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Arm name (see `dynid arms`).
+    /// Arm: a name (see `dynid arms`), a D-H table (`.toml`) or a URDF (`.urdf`).
     #[arg(long)]
     pub arm: String,
-    /// Trajectory family.
-    #[arg(long, value_enum, default_value = "logistic")]
+    /// Trajectory family: Fourier series with a quintic boundary term, or the paper's Logistic.
+    #[arg(long, value_enum, default_value = "fourier")]
     pub kind: Kind,
-    /// GA seed.
-    #[arg(long, default_value_t = 2022)]
-    pub seed: u64,
-    /// GA generations (the paper: 500).
-    #[arg(long, default_value_t = 500)]
-    pub generations: usize,
+    /// Period of the trajectory, s.
+    #[arg(long, default_value_t = 10.0)]
+    pub period: f64,
     /// Fourier: harmonics per joint.
     #[arg(long, default_value_t = 5)]
     pub harmonics: usize,
-    /// Fourier: period of the fundamental, s.
-    #[arg(long, default_value_t = 10.0)]
-    pub period: f64,
-    /// Output JSON (default: stdout).
+    /// Sample rate of trajectory.csv and of the reported condition number, Hz.
+    #[arg(long, default_value_t = 500.0)]
+    pub rate: f64,
+    /// Rate the search evaluates candidates at, Hz.
+    #[arg(long, default_value_t = 25.0)]
+    pub search_rate: f64,
+    /// What to minimise.
+    #[arg(long, value_enum, default_value = "cond")]
+    pub objective: Objective,
+    /// Effect columns of the observation matrix (comma list, or `none`).
+    #[arg(long, default_value = "viscous,coulomb,offset,armature")]
+    pub effects: String,
+    /// Limits TOML: `[[joint]]` tables with q_min, q_max, dq_max, ddq_max, tau_max.
     #[arg(long)]
-    pub out: Option<PathBuf>,
+    pub limits: Option<PathBuf>,
+    /// Lower position limits, rad (comma list: one value or one per joint).
+    #[arg(long, allow_hyphen_values = true)]
+    pub q_min: Option<String>,
+    /// Upper position limits, rad.
+    #[arg(long, allow_hyphen_values = true)]
+    pub q_max: Option<String>,
+    /// Velocity limits, rad/s.
+    #[arg(long)]
+    pub dq_max: Option<String>,
+    /// Acceleration limits, rad/s².
+    #[arg(long)]
+    pub ddq_max: Option<String>,
+    /// Torque limits, N·m (checked when --params is given).
+    #[arg(long)]
+    pub tau_max: Option<String>,
+    /// Start and end posture, rad (default: the middle of each range).
+    #[arg(long, allow_hyphen_values = true)]
+    pub q0: Option<String>,
+    /// Inertial parameters (TOML, as `import-urdf` writes) for the torque limits.
+    #[arg(long)]
+    pub params: Option<PathBuf>,
+    /// Keep the tool point (last frame origin) above this height in the base frame, m.
+    #[arg(long, allow_hyphen_values = true)]
+    pub keep_above: Option<f64>,
+    /// Relative margin kept from the position, velocity and acceleration limits.
+    #[arg(long, default_value_t = 0.005)]
+    pub margin: f64,
+    /// CMA-ES seed.
+    #[arg(long, default_value_t = 2022)]
+    pub seed: u64,
+    /// CMA-ES generations.
+    #[arg(long, default_value_t = 300)]
+    pub generations: usize,
+    /// Wall-clock budget of the search, s.
+    #[arg(long, default_value_t = 60.0)]
+    pub budget_s: f64,
+    /// Output directory.
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
+fn parse_effects(spec: &str) -> Result<Vec<Effect>, InputError> {
+    let s = spec.trim();
+    if s == "none" || s.is_empty() {
+        return Ok(Vec::new());
+    }
+    let mut out = Vec::new();
+    for name in s.split(',') {
+        match Effect::parse(name) {
+            Some(e) if !e.needs_load() => out.push(e),
+            _ => {
+                return Err(InputError(format!(
+                    "--effects: `{}` is not one of viscous, coulomb, stribeck, offset, armature, spring (or `none`)",
+                    name.trim()
+                )))
+            }
+        }
+    }
+    out.dedup();
+    Ok(out)
 }
 
 pub fn run(args: &Args) -> Result<()> {
-    let model = match resolve(&args.arm)? {
-        ArmSource::Generated(m) => m,
-        ArmSource::Table(_) => {
-            return Err(InputError(
-                "excite needs a generated arm (a name from `dynid arms`), not a D-H table path"
-                    .into(),
-            )
-            .into())
-        }
+    let imported = resolve_urdf(&args.arm)?;
+    let arm = resolve(&args.arm)?;
+    let table = arm.dh_table()?;
+    let dof = arm.dof();
+    let names: Vec<String> = match (&imported, table.joint_names()) {
+        (Some(i), _) => i.chain.clone(),
+        (None, Some(n)) => n,
+        _ => (1..=dof).map(|j| format!("joint {j}")).collect(),
     };
-    if args.generations == 0 || args.harmonics < 2 || args.period <= 0.0 || !args.period.is_finite()
-    {
+    let list = |flag: &'static str, v: &Option<String>| -> Result<Option<Vec<f64>>> {
+        v.as_deref()
+            .map(|t| limits::parse_list(flag, t, dof))
+            .transpose()
+            .map_err(|e| InputError(e.to_string()).into())
+    };
+    let file = match &args.limits {
+        Some(p) => Some((
+            p.display().to_string(),
+            LimitsFile::read(p, dof).map_err(|e| InputError(e.to_string()))?,
+        )),
+        None => None,
+    };
+    let sources = LimitSources {
+        names,
+        arm: limits::from_table(&table),
+        arm_label: if imported.is_some() {
+            "urdf"
+        } else {
+            "arm table"
+        }
+        .into(),
+        soft: match &imported {
+            Some(i) => limits::soft_limits(std::path::Path::new(&args.arm), &i.chain),
+            None => Vec::new(),
+        },
+        file,
+        overrides: Overrides {
+            q_min: list("--q-min", &args.q_min)?,
+            q_max: list("--q-max", &args.q_max)?,
+            dq_max: list("--dq-max", &args.dq_max)?,
+            ddq_max: list("--ddq-max", &args.ddq_max)?,
+            tau_max: list("--tau-max", &args.tau_max)?,
+            q0: list("--q0", &args.q0)?,
+        },
+    };
+    let limits = sources.resolve().map_err(|e| InputError(e.to_string()))?;
+    let params = match &args.params {
+        Some(p) => Some(InertialParams::from_path(
+            p,
+            dof,
+            &ParamsOptions::default(),
+        )?),
+        None => None,
+    };
+    if !(args.budget_s.is_finite() && args.budget_s > 0.0) {
+        return Err(InputError(format!("--budget-s must be > 0 (got {})", args.budget_s)).into());
+    }
+    if !(args.margin >= 0.0 && args.margin < 0.5) {
         return Err(InputError(format!(
-            "--generations must be ≥ 1, --harmonics ≥ 2 and --period > 0 (got {}, {}, {})",
-            args.generations, args.harmonics, args.period
+            "--margin must be in [0, 0.5) (got {})",
+            args.margin
         ))
         .into());
     }
-    let ga = GaConfig {
+    let cfg = DesignConfig {
+        family: match args.kind {
+            Kind::Fourier => Family::Fourier,
+            Kind::Logistic => Family::Logistic,
+        },
+        period: args.period,
+        harmonics: args.harmonics,
+        rate: args.rate,
+        search_rate: args.search_rate,
+        objective: match args.objective {
+            Objective::Cond => ObjectiveKind::Cond,
+            Objective::Logdet => ObjectiveKind::LogDet,
+        },
+        effects: parse_effects(&args.effects)?,
         seed: args.seed,
         generations: args.generations,
-        ..GaConfig::default()
+        budget: Duration::from_secs_f64(args.budget_s),
+        margin: args.margin,
+        keep_above: args.keep_above,
+        population: None,
     };
     let (bar, pb) = crate::bar::Bar::start();
-    pb.stage("generations", ga.generations as u64);
-    let doc = match args.kind {
-        Kind::Logistic => {
-            if model.dof() != 2 || model.nb() != 6 {
-                return Err(InputError(format!(
-                    "--kind logistic is the paper's step-by-step design for a 2-DOF arm with the paper's 6 base parameters; `{}` has {} joints and {} base parameters — use --kind fourier",
-                    model.name(), model.dof(), model.nb()
-                ))
-                .into());
-            }
-            // the paper's design, sampled at the paper's 100 Hz identification log
-            let problem = LogisticProblem::planar(model, &LogisticSettings::paper(), 0.01);
-            let r = minimize(&ga, &problem.bounds(), |x| problem.cost(x), Some(&pb));
-            let design = problem
-                .design(&r.best)
-                .map_err(|e| InputError(e.to_string()))?;
-            let ev = problem.evaluate(&design);
-            let steps: Vec<TrajectorySpec> = (0..problem.steps.len())
-                .map(|s| TrajectorySpec::Logistic(problem.step_trajectory(&design, s)))
-                .collect();
-            // one file that `simulate` can run: the first step; all steps are listed too
-            let first: Logistic = problem.step_trajectory(&design, 0);
-            json!({
-                "arm": model.name(), "kind": "logistic", "seed": args.seed, "generations": args.generations,
-                "design": design, "cond": ev.cond, "feasible": ev.margins.feasible(), "margins": ev.margins,
-                "cost": ev.cost, "steps": steps, "trajectory": TrajectorySpec::Logistic(first),
-            })
-        }
-        Kind::Fourier => {
-            let problem = FourierProblem {
-                model,
-                limits: Limits::paper(),
-                height: None,
-                geometry: vec![],
-                wf: std::f64::consts::TAU / args.period,
-                harmonics: args.harmonics,
-                coef_bound: 0.1,
-                ts: 0.05,
-                penalty: 1000.0,
-            };
-            let r = minimize(&ga, &problem.bounds(), |x| problem.cost(x), Some(&pb));
-            let traj = problem.trajectory(&r.best);
-            let ev = FourierProblem {
-                ts: 0.01,
-                ..problem
-            }
-            .evaluate(&traj);
-            json!({
-                "arm": model.name(), "kind": "fourier", "seed": args.seed, "generations": args.generations,
-                "cond": ev.cond, "feasible": ev.margins.feasible(), "margins": ev.margins, "cost": ev.cost,
-                "trajectory": TrajectorySpec::Fourier(traj),
-            })
-        }
-    };
+    let result = design(&arm, &limits, params.as_ref(), &cfg, Some(&pb));
     bar.finish_and_clear();
-    let text = serde_json::to_string_pretty(&doc)?;
-    write_output(args.out.as_deref(), |w| writeln!(w, "{text}"))
+    let d = match result {
+        Ok(d) => d,
+        Err(e @ DesignError::Settings(_)) => return Err(InputError(e.to_string()).into()),
+        Err(e) => return Err(e.into()),
+    };
+    output::write_all(&args.out, arm.name(), &d, &limits, &cfg)?;
+    eprintln!(
+        "{}: cond {:.2} ({} columns), {} generations in {:.1} s; wrote {}",
+        arm.name(),
+        d.conditioning.cond,
+        d.columns.len(),
+        d.generations,
+        d.seconds,
+        args.out.display()
+    );
+    Ok(())
 }

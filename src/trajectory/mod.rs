@@ -69,6 +69,12 @@ pub enum TrajectorySpec {
     Logistic(logistic::Logistic),
     Fourier(fourier::Fourier),
     Sine(Sine),
+    /// Fourier series with a quintic boundary term (`dynid excite --kind fourier`).
+    #[serde(rename = "fourier_quintic")]
+    FourierQuintic(crate::excitation::fourier_quintic::FourierQuintic),
+    /// The Logistic family on all joints at once (`dynid excite --kind logistic`).
+    #[serde(rename = "logistic_n")]
+    LogisticN(crate::excitation::logistic_n::LogisticN),
 }
 
 impl TrajectorySpec {
@@ -143,6 +149,32 @@ impl TrajectorySpec {
                     return bad("a sine trajectory needs finite values and a duration > 0".into());
                 }
             }
+            Self::FourierQuintic(f) => {
+                let ok = f.period.is_finite()
+                    && f.period > 0.0
+                    && !f.joints.is_empty()
+                    && f.joints.iter().all(|j| {
+                        j.a.len() == j.b.len()
+                            && finite(&j.a)
+                            && finite(&j.b)
+                            && finite(&j.c)
+                            && j.q0.is_finite()
+                    });
+                if !ok {
+                    return bad("a fourier_quintic trajectory needs a period > 0, at least one joint, and finite coefficients with as many a as b".into());
+                }
+            }
+            Self::LogisticN(l) => {
+                let ok = l.period.is_finite()
+                    && l.period > 0.0
+                    && !l.joints.is_empty()
+                    && l.joints
+                        .iter()
+                        .all(|j| finite(&[j.q0, j.a, j.w]) && j.w > 0.0);
+                if !ok {
+                    return bad("a logistic_n trajectory needs a period > 0, at least one joint, finite q0 and a, and w > 0".into());
+                }
+            }
         }
         Ok(())
     }
@@ -153,6 +185,8 @@ impl TrajectorySpec {
             Self::Logistic(l) => l,
             Self::Fourier(f) => f,
             Self::Sine(s) => s,
+            Self::FourierQuintic(f) => f,
+            Self::LogisticN(l) => l,
         }
     }
 }

@@ -6,6 +6,7 @@ mod cli;
 mod common;
 mod dynamics;
 mod eval;
+mod excite;
 mod identify;
 mod kernels;
 mod loaders;

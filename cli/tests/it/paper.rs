@@ -426,25 +426,35 @@ fn point_mass_params(path: &Path, extra: &str) {
 #[test]
 fn cli_excite_then_simulate_tracks_the_designed_trajectory() {
     let dir = tempfile::tempdir().unwrap();
-    let ex = dir.path().join("ex.json");
+    let out_dir = dir.path().join("ex");
+    // the paper's limits: 0 < q < π, |q̇| < π/6, |q̈| < π/15
     let out = dynid(&[
         "excite",
         "--arm",
         "planar2",
+        "--q-min",
+        "0",
+        "--q-max",
+        "3.141592653589793",
+        "--dq-max",
+        "0.5235987755982988",
+        "--ddq-max",
+        "0.20943951023931953",
         "--generations",
         "5",
         "--out",
-        ex.to_str().unwrap(),
+        out_dir.to_str().unwrap(),
     ]);
     assert!(
         out.status.success(),
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
+    let ex = out_dir.join("excitation.json");
     let doc: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&ex).unwrap()).unwrap();
-    assert_eq!(doc["kind"], "logistic");
-    assert_eq!(doc["steps"].as_array().map(Vec::len), Some(2));
+    assert_eq!(doc["family"]["family"], "fourier");
+    assert_eq!(doc["trajectory"]["kind"], "fourier_quintic");
 
     // point masses at the link ends: ZZR1 = MXR1 = 2, ZZ2 = MX2 = 1 (the paper's θ)
     let params = dir.path().join("p.toml");
@@ -459,7 +469,7 @@ fn cli_excite_then_simulate_tracks_the_designed_trajectory() {
     let text = std::fs::read_to_string(&csv).unwrap();
     let mut lines = text.lines();
     assert_eq!(lines.next(), Some("t,q1,q2,dq1,dq2,ddq1,ddq2,tau1,tau2"));
-    // step 1 of the design: joint 1 rests at 0, joint 2 moves; with the true model RHFTC tracks it
+    // with the true model RHFTC tracks the designed trajectory
     let spec: dynid::trajectory::TrajectorySpec =
         serde_json::from_value(doc["trajectory"].clone()).unwrap();
     let (mut q, mut dq, mut ddq) = ([0.0; 2], [0.0; 2], [0.0; 2]);
@@ -498,8 +508,13 @@ fn cli_excite_then_simulate_tracks_the_designed_trajectory() {
         "logistic",
         "--generations",
         "1",
+        "--out",
+        dir.path().join("none").to_str().unwrap(),
     ]);
+    // puma560's table has no limits: a bad-input error naming the joint
     assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("joint 1") && err.contains("--q-min"), "{err}");
 }
 
 /// The main job end to end (`cargo run --release` runs the same; ~10 s).

@@ -14,6 +14,19 @@
 //! let r = minimize(&cfg, &[(-2.0, 2.0), (-2.0, 2.0)], |x| 1.0 + (x[0] - 0.5).powi(2) + (x[1] + 1.0).powi(2), None);
 //! assert!((r.best[0] - 0.5).abs() < 0.1 && (r.best[1] + 1.0).abs() < 0.1);
 //! ```
+//!
+//! Design for any arm under its own limits (`dynid excite`) lives in the submodules, one piece per
+//! file: [`limits`] (where the limits come from), [`fourier_quintic`] and [`logistic_n`] (the
+//! families), [`objective`] (the observation matrix), [`cmaes`] (the optimiser), [`design`] (the
+//! problem and its checks) and [`output`] (the files written).
+
+pub mod cmaes;
+pub mod design;
+pub mod fourier_quintic;
+pub mod limits;
+pub mod logistic_n;
+pub mod objective;
+pub mod output;
 
 use nalgebra::{DMatrix, SymmetricEigen};
 use rand::{Rng, SeedableRng};
