@@ -136,17 +136,14 @@ fn expand(args: &ArmArgs) -> Result<proc_macro2::TokenStream, String> {
         format!("arm `{arm}`: cannot read {gen_rel}: {e} — run `python -m codegen {arm}` (or `touch {toml_rel}` and `cargo build`)")
     })?;
 
-    let expected = hash::source_hash(&version, &toml);
-    let recorded = hash::header_hash(&generated).ok_or_else(|| {
-        format!("arm `{arm}`: {gen_rel} is malformed: its first lines must be the `// @generated` header with `// source-hash: <hex>` — {fix}")
-    })?;
-    if recorded != expected {
-        return Err(format!(
-            "arm `{arm}`: {gen_rel} is stale: its source hash {} does not match {toml_rel} with generator {version} ({}) — {fix}",
-            short(recorded),
-            short(&expected)
-        ));
-    }
+    check_fresh(
+        &arm,
+        &version,
+        &toml,
+        &generated,
+        (&toml_rel, &gen_rel),
+        &fix,
+    )?;
 
     let file = syn::parse_file(&generated).map_err(|e| {
         format!("arm `{arm}`: {gen_rel} is malformed: not valid Rust ({e}) — {fix}")
@@ -175,6 +172,7 @@ fn expand(args: &ArmArgs) -> Result<proc_macro2::TokenStream, String> {
     let doc =
         format!("Generated dynamics kernels of `{arm}` (from `{toml_rel}`; see `{gen_rel}`).");
     let type_doc = format!("The `{arm}` arm as a [`crate::model::Model`].");
+    let helpers = module_helpers();
     Ok(quote! {
         #[doc = #doc]
         #[allow(
@@ -206,41 +204,7 @@ fn expand(args: &ArmArgs) -> Result<proc_macro2::TokenStream, String> {
 
             #(#lane_fns)*
 
-            const _OP_COUNTS: [crate::model::OpCount; OP_COUNTS.len()] = {
-                let mut out = [crate::model::OpCount { kernel: "", mul: 0, add: 0 }; OP_COUNTS.len()];
-                let mut i = 0;
-                while i < OP_COUNTS.len() {
-                    out[i] = crate::model::OpCount { kernel: OP_COUNTS[i].0, mul: OP_COUNTS[i].1, add: OP_COUNTS[i].2 };
-                    i += 1;
-                }
-                out
-            };
-
-            #[cold]
-            #[inline(never)]
-            fn _bad_len(what: &str, len: usize, expected: usize) -> ! {
-                panic!("{}: `{}` has length {}, expected {}", NAME, what, len, expected)
-            }
-
-            #[inline(always)]
-            fn _arr<'a, T, const N: usize>(s: &'a [T], what: &str) -> &'a [T; N] {
-                match <&[T; N]>::try_from(s) {
-                    Ok(a) => a,
-                    Err(_) => _bad_len(what, s.len(), N),
-                }
-            }
-
-            #[inline(always)]
-            fn _arr_mut<'a, T, const N: usize>(s: &'a mut [T], what: &str) -> &'a mut [T; N] {
-                let len = s.len();
-                match <&mut [T; N]>::try_from(s) {
-                    Ok(a) => a,
-                    Err(_) => _bad_len(what, len, N),
-                }
-            }
-
-            type P = crate::pack::Pack;
-            type W = crate::pack::wide::Pack8;
+            #helpers
 
             #[doc = #type_doc]
             #[derive(Debug, Clone, Copy, Default)]
@@ -263,6 +227,71 @@ fn expand(args: &ArmArgs) -> Result<proc_macro2::TokenStream, String> {
             }
         }
     })
+}
+
+/// What every arm module holds beside its kernels: the op-count table, the slice-to-array checks
+/// the `Model` methods call, and the lane types.
+fn module_helpers() -> proc_macro2::TokenStream {
+    quote! {
+        const _OP_COUNTS: [crate::model::OpCount; OP_COUNTS.len()] = {
+            let mut out = [crate::model::OpCount { kernel: "", mul: 0, add: 0 }; OP_COUNTS.len()];
+            let mut i = 0;
+            while i < OP_COUNTS.len() {
+                out[i] = crate::model::OpCount { kernel: OP_COUNTS[i].0, mul: OP_COUNTS[i].1, add: OP_COUNTS[i].2 };
+                i += 1;
+            }
+            out
+        };
+
+        #[cold]
+        #[inline(never)]
+        fn _bad_len(what: &str, len: usize, expected: usize) -> ! {
+            panic!("{}: `{}` has length {}, expected {}", NAME, what, len, expected)
+        }
+
+        #[inline(always)]
+        fn _arr<'a, T, const N: usize>(s: &'a [T], what: &str) -> &'a [T; N] {
+            match <&[T; N]>::try_from(s) {
+                Ok(a) => a,
+                Err(_) => _bad_len(what, s.len(), N),
+            }
+        }
+
+        #[inline(always)]
+        fn _arr_mut<'a, T, const N: usize>(s: &'a mut [T], what: &str) -> &'a mut [T; N] {
+            let len = s.len();
+            match <&mut [T; N]>::try_from(s) {
+                Ok(a) => a,
+                Err(_) => _bad_len(what, len, N),
+            }
+        }
+
+        type P = crate::pack::Pack;
+        type W = crate::pack::wide::Pack8;
+    }
+}
+
+/// The generated file must record the source hash of its D-H table and generator version.
+fn check_fresh(
+    arm: &str,
+    version: &str,
+    toml: &[u8],
+    generated: &str,
+    (toml_rel, gen_rel): (&str, &str),
+    fix: &str,
+) -> Result<(), String> {
+    let expected = hash::source_hash(version, toml);
+    let recorded = hash::header_hash(generated).ok_or_else(|| {
+        format!("arm `{arm}`: {gen_rel} is malformed: its first lines must be the `// @generated` header with `// source-hash: <hex>` — {fix}")
+    })?;
+    if recorded != expected {
+        return Err(format!(
+            "arm `{arm}`: {gen_rel} is stale: its source hash {} does not match {toml_rel} with generator {version} ({}) — {fix}",
+            short(recorded),
+            short(&expected)
+        ));
+    }
+    Ok(())
 }
 
 /// Every const and fn of the contract must be there (the kernels of `generated/kernels.toml`, each
@@ -553,98 +582,13 @@ pub fn kernel_enum(input: TokenStream) -> TokenStream {
             .iter()
             .map(|k| syn::parse_str::<syn::Expr>(&k.out_len).map_err(|e| e.to_string()))
             .collect::<Result<Vec<_>, _>>()?;
-        // The forms of every kernel, one call each: `Kernel`'s method, the value type, the `Model`
-        // method's suffix, the doc.
-        let mut forms = vec![(
-            format_ident!("call"),
-            quote!(f64),
-            String::new(),
-            "Calls this kernel of `model`; inputs it does not take are ignored (`ddq`: q̈, or τ for the kernels that take τ; `theta`: base parameters).".to_string(),
-        )];
-        for (suffix, zeros) in LANE_FORMS {
-            let skip = if zeros {
-                ""
-            } else {
-                ", without writing the outputs that are constant zeros (`out` must hold zeros \
-                 there: zero it once, then reuse it for this kernel of this model)"
-            };
-            forms.push((
-                format_ident!("call_lanes{suffix}"),
-                quote!(crate::pack::Pack),
-                format!("_lanes{suffix}"),
-                format!("Calls the lane-batched copy of this kernel of `model` (see [`crate::pack`]){skip}."),
-            ));
-            forms.push((
-                format_ident!("call_lanes8{suffix}"),
-                quote!(crate::pack::wide::Pack8),
-                format!("_lanes8{suffix}"),
-                format!("Calls the eight-lane copy of this kernel of `model` (see [`crate::pack::wide`]){skip}."),
-            ));
-        }
+        let forms = kernel_forms();
         // The parameters every call of a form takes (`ty`: its value type).
         let params = |ty: &proc_macro2::TokenStream| {
             quote!(model: &dyn Model, q: &[#ty], dq: &[#ty], ddq: &[#ty], theta: &[#ty], out: &mut [#ty])
         };
-        let kernel_calls = forms.iter().map(|(call, ty, _, doc)| {
-            let params = params(ty);
-            quote! {
-                #[doc = #doc]
-                #[inline]
-                pub fn #call(self, #params) {
-                    match self {
-                        #(Kernel::#variants => <kernel_calls::#variants as KernelCall>::#call(
-                            model, q, dq, ddq, theta, out,
-                        ),)*
-                    }
-                }
-            }
-        });
-        let trait_calls = forms.iter().map(|(call, ty, _, _)| {
-            let doc = format!("[`Kernel::{call}`] of this kind.");
-            let params = params(ty);
-            quote! {
-                #[doc = #doc]
-                fn #call(#params);
-            }
-        });
-        // `Kernel::call`'s third joint-space slot is `ddq` for the kernels that take `q̈` and `τ`
-        // for those that take `τ` (forward dynamics): no kernel takes both.
-        let slots: Vec<Vec<Ident>> = kernels
-            .iter()
-            .map(|k| {
-                k.inputs
-                    .iter()
-                    .map(|i| format_ident!("{}", if i == "tau" { "ddq" } else { i.as_str() }))
-                    .collect()
-            })
-            .collect();
-        if let Some(k) = kernels
-            .iter()
-            .find(|k| k.inputs.iter().any(|i| i == "tau") && k.inputs.iter().any(|i| i == "ddq"))
-        {
-            return Err(format!(
-                "kernel `{}` takes both `ddq` and `tau`: `Kernel::call` has one slot for them",
-                k.name
-            ));
-        }
-        let variant_calls: Vec<proc_macro2::TokenStream> = kernels
-            .iter()
-            .zip(&slots)
-            .map(|(k, args)| {
-                let calls = forms.iter().map(|(call, ty, suffix, _)| {
-                    let method = format_ident!("{}{}", k.name, suffix);
-                    let params = params(ty);
-                    quote! {
-                        #[inline(always)]
-                        fn #call(#params) {
-                            let _ = (q, dq, ddq, theta);
-                            model.#method(#(#args,)* out)
-                        }
-                    }
-                });
-                quote!(#(#calls)*)
-            })
-            .collect();
+        let (kernel_calls, trait_calls) = form_calls(&variants, &forms, &params);
+        let variant_calls = variant_calls(&kernels, &forms, &params)?;
         let path = path_str(&path);
         Ok(quote! {
             #[doc(hidden)]
@@ -732,4 +676,116 @@ fn short(hash: &str) -> &str {
 
 fn path_str(path: &Path) -> LitStr {
     LitStr::new(&path.to_string_lossy(), Span::call_site())
+}
+
+/// One form of a kernel call: `Kernel`'s method, the value type, the `Model` method's suffix, the doc.
+type Form = (Ident, proc_macro2::TokenStream, String, String);
+
+/// The forms of every kernel, one call each (scalar, then the lane-batched copies).
+fn kernel_forms() -> Vec<Form> {
+    let mut forms = vec![(
+        format_ident!("call"),
+        quote!(f64),
+        String::new(),
+        "Calls this kernel of `model`; inputs it does not take are ignored (`ddq`: q̈, or τ for the kernels that take τ; `theta`: base parameters).".to_string(),
+    )];
+    for (suffix, zeros) in LANE_FORMS {
+        let skip = if zeros {
+            ""
+        } else {
+            ", without writing the outputs that are constant zeros (`out` must hold zeros \
+             there: zero it once, then reuse it for this kernel of this model)"
+        };
+        forms.push((
+            format_ident!("call_lanes{suffix}"),
+            quote!(crate::pack::Pack),
+            format!("_lanes{suffix}"),
+            format!("Calls the lane-batched copy of this kernel of `model` (see [`crate::pack`]){skip}."),
+        ));
+        forms.push((
+            format_ident!("call_lanes8{suffix}"),
+            quote!(crate::pack::wide::Pack8),
+            format!("_lanes8{suffix}"),
+            format!("Calls the eight-lane copy of this kernel of `model` (see [`crate::pack::wide`]){skip}."),
+        ));
+    }
+    forms
+}
+
+/// Each kernel kind's [`KernelCall`] methods: every form calls the `Model` method with the
+/// kernel's own inputs.
+fn variant_calls(
+    kernels: &[KernelSpec],
+    forms: &[Form],
+    params: &dyn Fn(&proc_macro2::TokenStream) -> proc_macro2::TokenStream,
+) -> Result<Vec<proc_macro2::TokenStream>, String> {
+    // `Kernel::call`'s third joint-space slot is `ddq` for the kernels that take `q̈` and `τ`
+    // for those that take `τ` (forward dynamics): no kernel takes both.
+    let slots: Vec<Vec<Ident>> = kernels
+        .iter()
+        .map(|k| {
+            k.inputs
+                .iter()
+                .map(|i| format_ident!("{}", if i == "tau" { "ddq" } else { i.as_str() }))
+                .collect()
+        })
+        .collect();
+    if let Some(k) = kernels
+        .iter()
+        .find(|k| k.inputs.iter().any(|i| i == "tau") && k.inputs.iter().any(|i| i == "ddq"))
+    {
+        return Err(format!(
+            "kernel `{}` takes both `ddq` and `tau`: `Kernel::call` has one slot for them",
+            k.name
+        ));
+    }
+    Ok(kernels
+        .iter()
+        .zip(&slots)
+        .map(|(k, args)| {
+            let calls = forms.iter().map(|(call, ty, suffix, _)| {
+                let method = format_ident!("{}{}", k.name, suffix);
+                let params = params(ty);
+                quote! {
+                    #[inline(always)]
+                    fn #call(#params) {
+                        let _ = (q, dq, ddq, theta);
+                        model.#method(#(#args,)* out)
+                    }
+                }
+            });
+            quote!(#(#calls)*)
+        })
+        .collect())
+}
+
+/// `Kernel`'s method of each form (a match over the kinds) and its declaration in [`KernelCall`].
+fn form_calls(
+    variants: &[Ident],
+    forms: &[Form],
+    params: &dyn Fn(&proc_macro2::TokenStream) -> proc_macro2::TokenStream,
+) -> (Vec<proc_macro2::TokenStream>, Vec<proc_macro2::TokenStream>) {
+    let kernel_calls = forms.iter().map(|(call, ty, _, doc)| {
+        let params = params(ty);
+        quote! {
+            #[doc = #doc]
+            #[inline]
+            pub fn #call(self, #params) {
+                match self {
+                    #(Kernel::#variants => <kernel_calls::#variants as KernelCall>::#call(
+                        model, q, dq, ddq, theta, out,
+                    ),)*
+                }
+            }
+        }
+    });
+    let trait_calls = forms.iter().map(|(call, ty, _, _)| {
+        let doc = format!("[`Kernel::{call}`] of this kind.");
+        let params = params(ty);
+        quote! {
+            #[doc = #doc]
+            fn #call(#params);
+        }
+    });
+    (kernel_calls.collect(), trait_calls.collect())
 }

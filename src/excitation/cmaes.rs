@@ -71,6 +71,54 @@ fn normal(rng: &mut ChaCha8Rng) -> f64 {
     (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
 }
 
+/// The standard strategy parameters of CMA-ES for `n` variables (Hansen's tutorial defaults).
+struct Strategy {
+    lambda: usize,
+    mu: usize,
+    weights: Vec<f64>,
+    mueff: f64,
+    cc: f64,
+    cs: f64,
+    c1: f64,
+    cmu: f64,
+    damps: f64,
+    chi_n: f64,
+}
+
+impl Strategy {
+    fn new(n: usize, population: Option<usize>) -> Self {
+        let nf = n as f64;
+        let lambda = population
+            .unwrap_or(4 + (3.0 * nf.ln()).floor() as usize)
+            .max(4);
+        let mu = lambda / 2;
+        let raw: Vec<f64> = (0..mu)
+            .map(|i| ((lambda as f64 + 1.0) / 2.0).ln() - ((i + 1) as f64).ln())
+            .collect();
+        let sum: f64 = raw.iter().sum();
+        let weights: Vec<f64> = raw.iter().map(|w| w / sum).collect();
+        let mueff = 1.0 / weights.iter().map(|w| w * w).sum::<f64>();
+        let cc = (4.0 + mueff / nf) / (nf + 4.0 + 2.0 * mueff / nf);
+        let cs = (mueff + 2.0) / (nf + mueff + 5.0);
+        let c1 = 2.0 / ((nf + 1.3).powi(2) + mueff);
+        let cmu = (1.0 - c1).min(2.0 * (mueff - 2.0 + 1.0 / mueff) / ((nf + 2.0).powi(2) + mueff));
+        let damps = 1.0 + 2.0 * (((mueff - 1.0) / (nf + 1.0)).sqrt() - 1.0).max(0.0) + cs;
+        let chi_n = nf.sqrt() * (1.0 - 1.0 / (4.0 * nf) + 1.0 / (21.0 * nf * nf));
+        Strategy {
+            lambda,
+            mu,
+            weights,
+            mueff,
+            cc,
+            cs,
+            c1,
+            cmu,
+            damps,
+            chi_n,
+        }
+    }
+}
+
 /// Minimises `f` from `x0`; non-finite costs rank last. Reports one progress step per generation.
 pub fn minimize<F>(
     x0: &[f64],
@@ -84,23 +132,18 @@ where
     let start = Instant::now();
     let n = x0.len().max(1);
     let nf = n as f64;
-    let lambda = cfg
-        .population
-        .unwrap_or(4 + (3.0 * nf.ln()).floor() as usize)
-        .max(4);
-    let mu = lambda / 2;
-    let raw: Vec<f64> = (0..mu)
-        .map(|i| ((lambda as f64 + 1.0) / 2.0).ln() - ((i + 1) as f64).ln())
-        .collect();
-    let sum: f64 = raw.iter().sum();
-    let weights: Vec<f64> = raw.iter().map(|w| w / sum).collect();
-    let mueff = 1.0 / weights.iter().map(|w| w * w).sum::<f64>();
-    let cc = (4.0 + mueff / nf) / (nf + 4.0 + 2.0 * mueff / nf);
-    let cs = (mueff + 2.0) / (nf + mueff + 5.0);
-    let c1 = 2.0 / ((nf + 1.3).powi(2) + mueff);
-    let cmu = (1.0 - c1).min(2.0 * (mueff - 2.0 + 1.0 / mueff) / ((nf + 2.0).powi(2) + mueff));
-    let damps = 1.0 + 2.0 * (((mueff - 1.0) / (nf + 1.0)).sqrt() - 1.0).max(0.0) + cs;
-    let chi_n = nf.sqrt() * (1.0 - 1.0 / (4.0 * nf) + 1.0 / (21.0 * nf * nf));
+    let Strategy {
+        lambda,
+        mu,
+        weights,
+        mueff,
+        cc,
+        cs,
+        c1,
+        cmu,
+        damps,
+        chi_n,
+    } = Strategy::new(n, cfg.population);
 
     let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);
     let mut mean = DVector::from_column_slice(x0);

@@ -25,9 +25,7 @@ use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
 
 use super::cmaes::{self, CmaesConfig};
-use super::fourier_quintic::FourierQuintic;
 use super::limits::Limits;
-use super::logistic_n::{min_steepness, LnJoint, LogisticN};
 use super::objective::{conditioning, Conditioning, Grid, ObjectiveKind, Observation};
 use crate::arms::ArmSource;
 use crate::dh::{DhTable, JointKind};
@@ -35,6 +33,8 @@ use crate::effects::Effect;
 use crate::params::InertialParams;
 use crate::progress::Progress;
 use crate::reference::RefModel;
+use crate::trajectory::fourier_quintic::FourierQuintic;
+use crate::trajectory::logistic_n::{min_steepness, LnJoint, LogisticN};
 use crate::trajectory::Motion;
 
 /// Trajectory family.

@@ -133,49 +133,7 @@ pub fn identify_payload_with(
     progress: &Progress,
 ) -> Result<PayloadEstimate, PayloadError> {
     let n = table.dof();
-    if arm.dof() != n {
-        return Err(PayloadError::Input(format!(
-            "the parameters have {} links, the arm {} joints",
-            arm.dof(),
-            n
-        )));
-    }
-    if loaded.is_empty() {
-        return Err(PayloadError::Input("no loaded run (--data)".into()));
-    }
-    if !unloaded.is_empty() && unloaded.len() != loaded.len() {
-        return Err(PayloadError::Input(format!(
-            "{} loaded runs and {} unloaded: give one unloaded twin per loaded run (same order), or none",
-            loaded.len(),
-            unloaded.len()
-        )));
-    }
-    if let Some(m) = opts.mass {
-        if !(m.is_finite() && m > 0.0) {
-            return Err(PayloadError::Input(format!(
-                "--mass {m}: the payload's mass must be a positive number of kg"
-            )));
-        }
-    }
-    let given = match &opts.torque_scale {
-        Some(s) if s.len() != n => {
-            return Err(PayloadError::Input(format!(
-                "--torque-scale has {} values, the arm {} joints",
-                s.len(),
-                n
-            )))
-        }
-        Some(s) => s.clone(),
-        None => vec![1.0; n],
-    };
-    for t in loaded.iter().chain(&unloaded) {
-        if t.dof != n {
-            return Err(PayloadError::Input(format!(
-                "{}: {} joints, the arm has {}",
-                t.source, t.dof, n
-            )));
-        }
-    }
+    let given = check_inputs(table, arm, &loaded, &unloaded, opts)?;
     let model = RefModel::new(table);
     let p = arm.full_vector();
     let am = rows::ArmModel {
@@ -254,21 +212,9 @@ pub fn identify_payload_with(
             "the least-squares payload was not a physical body; the estimate is the closest physical one (pseudo-inertia ⪰ 0) — excite the flange more".into(),
         );
     }
-    let mut uncalibrated = Vec::new();
-    if let Some(g) = &gains {
-        for (j, ok) in g.calibrated.iter().enumerate() {
-            if !ok {
-                uncalibrated.push(j + 1);
-                warnings.push(format!(
-                    "joint {}: the payload loads it too little to calibrate its drive gain (σ {:.2} % of the scale > {:.0} %); kept at {}",
-                    j + 1,
-                    100.0 * g.sigma[j] / g.scale[j].abs().max(1e-12),
-                    100.0 * drive_gain::MAX_RELATIVE_SIGMA,
-                    given[j]
-                ));
-            }
-        }
-    }
+    let uncalibrated = gains
+        .as_ref()
+        .map_or_else(Vec::new, |g| uncalibrated_joints(g, &given, &mut warnings));
     Ok(PayloadEstimate {
         mass,
         com,
@@ -290,6 +236,84 @@ pub fn identify_payload_with(
         projected: f.projected,
         warnings,
     })
+}
+
+/// The checks of the inputs that need no data: sizes, the known mass, the drive-gain list. Returns
+/// the torque scales to apply (1 where none are given).
+fn check_inputs(
+    table: &DhTable,
+    arm: &InertialParams,
+    loaded: &[Trajectory],
+    unloaded: &[Trajectory],
+    opts: &PayloadOptions,
+) -> Result<Vec<f64>, PayloadError> {
+    let n = table.dof();
+    if arm.dof() != n {
+        return Err(PayloadError::Input(format!(
+            "the parameters have {} links, the arm {} joints",
+            arm.dof(),
+            n
+        )));
+    }
+    if loaded.is_empty() {
+        return Err(PayloadError::Input("no loaded run (--data)".into()));
+    }
+    if !unloaded.is_empty() && unloaded.len() != loaded.len() {
+        return Err(PayloadError::Input(format!(
+            "{} loaded runs and {} unloaded: give one unloaded twin per loaded run (same order), or none",
+            loaded.len(),
+            unloaded.len()
+        )));
+    }
+    if let Some(m) = opts.mass {
+        if !(m.is_finite() && m > 0.0) {
+            return Err(PayloadError::Input(format!(
+                "--mass {m}: the payload's mass must be a positive number of kg"
+            )));
+        }
+    }
+    let given = match &opts.torque_scale {
+        Some(s) if s.len() != n => {
+            return Err(PayloadError::Input(format!(
+                "--torque-scale has {} values, the arm {} joints",
+                s.len(),
+                n
+            )))
+        }
+        Some(s) => s.clone(),
+        None => vec![1.0; n],
+    };
+    for t in loaded.iter().chain(unloaded) {
+        if t.dof != n {
+            return Err(PayloadError::Input(format!(
+                "{}: {} joints, the arm has {}",
+                t.source, t.dof, n
+            )));
+        }
+    }
+    Ok(given)
+}
+
+/// The joints (1-based) whose drive gain the pair cannot calibrate, each with a warning.
+fn uncalibrated_joints(
+    g: &drive_gain::DriveGains,
+    given: &[f64],
+    warnings: &mut Vec<String>,
+) -> Vec<usize> {
+    let mut uncalibrated = Vec::new();
+    for (j, ok) in g.calibrated.iter().enumerate() {
+        if !ok {
+            uncalibrated.push(j + 1);
+            warnings.push(format!(
+                    "joint {}: the payload loads it too little to calibrate its drive gain (σ {:.2} % of the scale > {:.0} %); kept at {}",
+                    j + 1,
+                    100.0 * g.sigma[j] / g.scale[j].abs().max(1e-12),
+                    100.0 * drive_gain::MAX_RELATIVE_SIGMA,
+                    given[j]
+                ));
+        }
+    }
+    uncalibrated
 }
 
 /// The payload parameters whose σ exceeds the `WARN_*` thresholds, named with their σ.

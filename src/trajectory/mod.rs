@@ -12,7 +12,9 @@
 //! ```
 
 pub mod fourier;
+pub mod fourier_quintic;
 pub mod logistic;
+pub mod logistic_n;
 
 use serde::{Deserialize, Serialize};
 
@@ -71,10 +73,10 @@ pub enum TrajectorySpec {
     Sine(Sine),
     /// Fourier series with a quintic boundary term (`dynid excite --kind fourier`).
     #[serde(rename = "fourier_quintic")]
-    FourierQuintic(crate::excitation::fourier_quintic::FourierQuintic),
+    FourierQuintic(fourier_quintic::FourierQuintic),
     /// The Logistic family on all joints at once (`dynid excite --kind logistic`).
     #[serde(rename = "logistic_n")]
-    LogisticN(crate::excitation::logistic_n::LogisticN),
+    LogisticN(logistic_n::LogisticN),
 }
 
 impl TrajectorySpec {

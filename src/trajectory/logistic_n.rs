@@ -12,8 +12,8 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::trajectory::logistic::{LogisticJoint, PEAK_ACCEL_FACTOR};
-use crate::trajectory::Motion;
+use super::logistic::{LogisticJoint, PEAK_ACCEL_FACTOR};
+use super::Motion;
 
 /// Largest `|q̇|`, `|q̈|` allowed at the start and end (eq. 11's tolerance), rad/s, rad/s².
 pub const REST_TOL: f64 = 1e-4;

@@ -12,7 +12,7 @@
 //! between samples).
 //!
 //! ```
-//! use dynid::excitation::fourier_quintic::FourierQuintic;
+//! use dynid::trajectory::fourier_quintic::FourierQuintic;
 //! use dynid::trajectory::Motion;
 //! let f = FourierQuintic::new(10.0, &[0.3], &[vec![0.2, -0.1]], &[vec![0.05, 0.1]]);
 //! let (mut q, mut dq, mut ddq) = ([0.0], [0.0], [0.0]);
@@ -25,7 +25,7 @@
 use nalgebra::{Matrix3, Vector3};
 use serde::{Deserialize, Serialize};
 
-use crate::trajectory::Motion;
+use super::Motion;
 
 /// One joint: rest posture, harmonic coefficients (rad/s) and the boundary quintic.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
