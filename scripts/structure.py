@@ -140,6 +140,30 @@ def resolve(me: tuple[str, ...], path: list[str], modules: set[tuple[str, ...]])
     return base
 
 
+def cycles(edges: dict[tuple[str, ...], set[tuple[str, ...]]], files: dict[tuple[str, ...], Path]) -> list[str]:
+    """Every cycle a depth-first search meets, as a chain of file paths."""
+    out: list[str] = []
+    state: dict[tuple[str, ...], int] = {}
+    stack: list[tuple[str, ...]] = []
+
+    def visit(m: tuple[str, ...]) -> None:
+        state[m] = 1
+        stack.append(m)
+        for o in sorted(edges.get(m, ())):
+            if state.get(o) == 1:
+                cycle = stack[stack.index(o) :] + [o]
+                out.append("file cycle: " + " -> ".join(str(files[c].relative_to(ROOT)) for c in cycle))
+            elif o not in state:
+                visit(o)
+        stack.pop()
+        state[m] = 2
+
+    for m in sorted(edges):
+        if m not in state:
+            visit(m)
+    return out
+
+
 def main() -> int:
     problems: list[str] = []
     for src in crates():
@@ -168,27 +192,7 @@ def main() -> int:
                 if target is not None and target != me and target in modules:
                     edges.setdefault(me, set()).add(target)
 
-        def name(m: tuple[str, ...], src: Path = src) -> str:
-            return str(files[m].relative_to(ROOT))
-
-        state: dict[tuple[str, ...], int] = {}
-        stack: list[tuple[str, ...]] = []
-
-        def visit(m: tuple[str, ...]) -> None:
-            state[m] = 1
-            stack.append(m)
-            for o in sorted(edges.get(m, ())):
-                if state.get(o) == 1:
-                    cycle = stack[stack.index(o) :] + [o]
-                    problems.append("file cycle: " + " -> ".join(name(c) for c in cycle))
-                elif o not in state:
-                    visit(o)
-            stack.pop()
-            state[m] = 2
-
-        for m in sorted(edges):
-            if m not in state:
-                visit(m)
+        problems.extend(cycles(edges, files))
     for p in problems:
         print(p)
     print(f"structure: {len(problems)} problem(s) in {len(crates())} crates")
