@@ -19,7 +19,7 @@ pub struct Layout {
     /// Base columns the training data cannot determine (combinations of the other columns):
     /// held at zero, never fitted ([`super::run_prepared`]); the report names them.
     pub fixed: Vec<usize>,
-    /// Coefficients (one per column, zero on the [`Effect::LOADED`] ones) of the first-stage
+    /// Coefficients (one per column, zero on the [`Effect::LOADED`](crate::effects::Effect::LOADED) ones) of the first-stage
     /// model whose predicted torque the load-dependent columns use; empty when there are none.
     pub load: Vec<f64>,
 }
