@@ -123,6 +123,20 @@ class Arm:
         out: _Array | None = None,
     ) -> _Array:
         """``tau = M(q) ddq + h(q, dq)``, ``(n,)`` or ``(N, n)``."""
+    def forward_dynamics(
+        self, q: _ArrayLike, dq: _ArrayLike, tau: _ArrayLike, params: _ArrayLike, *, threads: int | None = None
+    ) -> _Array:
+        """``ddq = M(q)⁻¹ (tau − h(q, dq))``, ``(n,)`` or ``(N, n)``."""
+    def inverse_mass_matrix(self, q: _ArrayLike, params: _ArrayLike, *, threads: int | None = None) -> _Array:
+        """``M(q)⁻¹``, ``(n, n)`` or ``(N, n, n)``."""
+    def inverse_dynamics_derivatives(
+        self, q: _ArrayLike, dq: _ArrayLike, ddq: _ArrayLike, params: _ArrayLike, *, threads: int | None = None
+    ) -> tuple[_Array, _Array]:
+        """``(∂tau/∂q, ∂tau/∂dq)``, each ``(n, n)`` or ``(N, n, n)`` (rows: outputs, columns: inputs)."""
+    def forward_dynamics_derivatives(
+        self, q: _ArrayLike, dq: _ArrayLike, tau: _ArrayLike, params: _ArrayLike, *, threads: int | None = None
+    ) -> tuple[_Array, _Array, _Array]:
+        """``(∂ddq/∂q, ∂ddq/∂dq, M⁻¹)``, each ``(n, n)`` or ``(N, n, n)``."""
     def __eq__(self, other: object) -> bool: ...
     def __reduce__(self) -> tuple[Any, tuple[str, str, str, str]]: ...
 
