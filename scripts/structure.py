@@ -116,20 +116,13 @@ def expand(tree: str) -> list[str]:
     return [x for p in parts if p for x in expand(prefix + p)]
 
 
-def resolve(me: tuple[str, ...], path: list[str], modules: set[tuple[str, ...]]) -> tuple[str, ...] | None:
-    """The deepest module that `path` (starting with crate/super/self or a child's name) reaches."""
-    head, rest = path[0], path[1:]
-    if head == "crate":
-        base: tuple[str, ...] = ()
-    elif head in {"self", "super"}:
-        base = me
-        while head == "super":
+def resolve(me: tuple[str, ...], path: list[str], modules: set[tuple[str, ...]]) -> tuple[str, ...]:
+    """The deepest module that `path` (starting with crate, super or self) reaches."""
+    base, rest = ((), path[1:]) if path[0] == "crate" else (me, path)
+    while rest and rest[0] in {"self", "super"}:
+        if rest[0] == "super":
             base = base[:-1]
-            head, rest = (rest[0], rest[1:]) if rest else ("", [])
-        if head not in {"", "super", "self"}:
-            rest = [head, *rest]
-    else:
-        base, rest = me, path
+        rest = rest[1:]
     for seg in rest:
         if seg == "self":
             continue
@@ -189,7 +182,7 @@ def main() -> int:
                 refs.append([head, *[s for s in re.sub(r"\s+", "", tail).split("::") if s]])
             for segs in refs:
                 target = resolve(me, segs, modules)
-                if target is not None and target != me and target in modules:
+                if target != me and target in modules:
                     edges.setdefault(me, set()).add(target)
 
         problems.extend(cycles(edges, files))
