@@ -1,4 +1,5 @@
-//! Tracking controllers built on the generated kernels and a parameter estimate `θ̂`.
+//! Tracking controllers built on an arm's dynamics with a parameter estimate `θ̂` (the generated
+//! kernels, or the reference recursions of a D-H table: [`Dynamics`]).
 //!
 //! - [`Rhftc`]: the paper's robust finite-time controller (eq. 23),
 //!   `τ = M̂(q)[q̈d + Kp Sig(e)^α1 + Kd Sig(ė)^α2] + ĥ(q, q̇)` with `e = qd − q` and
@@ -18,6 +19,7 @@
 //! ```
 
 use crate::cholesky::cholesky;
+use crate::dynamics::{Dynamics, Generated};
 use crate::model::Model;
 
 /// A joint-torque feedback law.
@@ -111,8 +113,7 @@ pub trait ModelBased: Controller {
 
 /// Model-based part shared by [`Rhftc`] and [`Ctc`]: `τ = M̂ v + ĥ`, or the fallback PD.
 struct ModelLaw<'a> {
-    model: &'a dyn Model,
-    theta: Vec<f64>,
+    body: Box<dyn Dynamics + 'a>,
     fallback: Pd,
     m: Vec<f64>,
     chol: Vec<f64>,
@@ -145,11 +146,10 @@ impl<'a> ModelLaw<'a> {
         cholesky(&mut self.chol, n)
     }
 
-    fn new(model: &'a dyn Model, theta: Vec<f64>, fallback: Pd) -> Self {
-        let n = model.dof();
+    fn new(body: Box<dyn Dynamics + 'a>, fallback: Pd) -> Self {
+        let n = body.dof();
         Self {
-            model,
-            theta,
+            body,
             fallback,
             m: vec![0.0; n * n],
             chol: vec![0.0; n * n],
@@ -179,7 +179,7 @@ impl<'a> ModelLaw<'a> {
     ) {
         let n = q.len();
         self.steps += 1;
-        self.model.mass_matrix(q, &self.theta, &mut self.m);
+        self.body.mass_matrix(q, &mut self.m);
         let trace: f64 = (0..n).map(|i| self.m[i * n + i]).sum();
         if trace.is_nan() || trace <= 0.0 {
             self.fallback_steps += 1;
@@ -203,7 +203,7 @@ impl<'a> ModelLaw<'a> {
             }
             self.loaded_steps += 1;
         }
-        self.model.bias(q, dq, &self.theta, &mut self.h);
+        self.body.bias(q, dq, &mut self.h);
         for (i, t) in tau.iter_mut().enumerate().take(n) {
             *t = self.h[i] + (0..n).map(|k| self.m[i * n + k] * self.v[k]).sum::<f64>();
         }
@@ -221,8 +221,14 @@ impl<'a> Rhftc<'a> {
     /// Eq. 23 with the estimate `theta_hat` (base parameters of `model`), falling back to `fallback`
     /// where `M̂(q)` is not positive definite.
     pub fn new(model: &'a dyn Model, theta_hat: Vec<f64>, gains: RhftcGains, fallback: Pd) -> Self {
+        Self::on(Box::new(Generated::new(model, theta_hat)), gains, fallback)
+    }
+
+    /// Eq. 23 on any arm's dynamics with the estimate bound in (e.g. a D-H table's reference
+    /// dynamics, [`crate::dynamics::Reference`]).
+    pub fn on(estimate: Box<dyn Dynamics + 'a>, gains: RhftcGains, fallback: Pd) -> Self {
         Self {
-            law: ModelLaw::new(model, theta_hat, fallback),
+            law: ModelLaw::new(estimate, fallback),
             gains,
             sign: SignConvention::Stable,
         }
@@ -274,8 +280,13 @@ impl<'a> Ctc<'a> {
         kd: Vec<f64>,
         fallback: Pd,
     ) -> Self {
+        Self::on(Box::new(Generated::new(model, theta_hat)), kp, kd, fallback)
+    }
+
+    /// Computed torque on any arm's dynamics with the estimate bound in.
+    pub fn on(estimate: Box<dyn Dynamics + 'a>, kp: Vec<f64>, kd: Vec<f64>, fallback: Pd) -> Self {
         Self {
-            law: ModelLaw::new(model, theta_hat, fallback),
+            law: ModelLaw::new(estimate, fallback),
             kp,
             kd,
         }

@@ -18,6 +18,7 @@ pub mod data;
 pub mod derivative;
 pub mod dh;
 pub mod diag;
+pub mod dynamics;
 pub mod effects;
 pub mod excitation;
 pub mod identify;

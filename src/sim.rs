@@ -24,6 +24,7 @@ mod rk4;
 
 use crate::cholesky::{cholesky, cholesky_solve};
 use crate::control::Controller;
+use crate::dynamics::{Dynamics, Generated};
 use crate::model::Model;
 use crate::params::Effects;
 use crate::trajectory::Motion;
@@ -86,10 +87,9 @@ impl Default for SimConfig {
     }
 }
 
-/// The simulated arm: true base parameters plus optional unmodelled effects.
+/// The simulated arm: its true rigid-body dynamics plus optional unmodelled effects.
 pub struct Plant<'a> {
-    pub model: &'a dyn Model,
-    pub theta: Vec<f64>,
+    pub body: Box<dyn Dynamics + 'a>,
     pub effects: Option<Effects>,
 }
 
@@ -202,12 +202,14 @@ impl Stepper {
 }
 
 impl<'a> Plant<'a> {
+    /// A generated arm with true base parameters `theta`.
     pub fn new(model: &'a dyn Model, theta: Vec<f64>, effects: Option<Effects>) -> Self {
-        Self {
-            model,
-            theta,
-            effects,
-        }
+        Self::on(Box::new(Generated::new(model, theta)), effects)
+    }
+
+    /// Any arm's dynamics ([`crate::dynamics::Reference`] for a D-H table or a URDF).
+    pub fn on(body: Box<dyn Dynamics + 'a>, effects: Option<Effects>) -> Self {
+        Self { body, effects }
     }
 
     /// Forward dynamics `q̈ = (M + Ia)⁻¹ (τ − h − f)`; false if the mass matrix is singular.
@@ -227,11 +229,11 @@ impl<'a> Plant<'a> {
                     w.h[j] = e.unload(j, dq[j], tau[j]) - e.torque(j, q[j], dq[j], 0.0);
                 }
             }
-            self.model.forward_dynamics(q, dq, &w.h, &self.theta, ddq);
+            self.body.forward_dynamics(q, dq, &w.h, ddq);
             return ddq.iter().all(|x| x.is_finite());
         }
-        self.model.mass_matrix(q, &self.theta, &mut w.m);
-        self.model.bias(q, dq, &self.theta, &mut w.h);
+        self.body.mass_matrix(q, &mut w.m);
+        self.body.bias(q, dq, &mut w.h);
         if let Some(e) = &self.effects {
             for j in 0..n {
                 ddq[j] = e.unload(j, dq[j], tau[j]) - w.h[j] - e.torque(j, q[j], dq[j], 0.0);
@@ -250,7 +252,7 @@ impl<'a> Plant<'a> {
     /// Torque the plant needs for `(q, q̇, q̈)`: rigid body plus effects (the "measured" torque of
     /// an ideal experiment).
     pub fn inverse_dynamics(&self, q: &[f64], dq: &[f64], ddq: &[f64], tau: &mut [f64]) {
-        self.model.inverse_dynamics(q, dq, ddq, &self.theta, tau);
+        self.body.inverse_dynamics(q, dq, ddq, tau);
         if let Some(e) = &self.effects {
             for j in 0..q.len() {
                 tau[j] = e.load(j, dq[j], tau[j] + e.torque(j, q[j], dq[j], ddq[j]));
@@ -266,7 +268,7 @@ pub fn simulate(
     traj: &dyn Motion,
     cfg: &SimConfig,
 ) -> Result<SimLog, SimError> {
-    let n = plant.model.dof();
+    let n = plant.body.dof();
     let mut q0 = vec![0.0; n];
     let (mut d0, mut a0) = (vec![0.0; n], vec![0.0; n]);
     traj.eval(0.0, &mut q0, &mut d0, &mut a0);
@@ -281,17 +283,18 @@ fn checked_steps(
     q0: &[f64],
     dq0: &[f64],
 ) -> Result<usize, SimError> {
-    let n = plant.model.dof();
-    if traj.dof() != n || q0.len() != n || dq0.len() != n || plant.theta.len() != plant.model.nb() {
+    let n = plant.body.dof();
+    if let Some(why) = plant.body.invalid() {
+        return Err(SimError::Invalid(why));
+    }
+    if traj.dof() != n || q0.len() != n || dq0.len() != n {
         return Err(SimError::Invalid(format!(
-            "arm {} has {} joints and {} base parameters; trajectory has {}, start state {}/{}, θ {}",
-            plant.model.name(),
+            "arm {} has {} joints; trajectory has {}, start state {}/{}",
+            plant.body.name(),
             n,
-            plant.model.nb(),
             traj.dof(),
             q0.len(),
             dq0.len(),
-            plant.theta.len()
         )));
     }
     if cfg.dt.is_nan() || cfg.dt <= 0.0 || cfg.log_every == 0 {
@@ -350,7 +353,7 @@ pub fn simulate_from(
     q0: &[f64],
     dq0: &[f64],
 ) -> Result<SimLog, SimError> {
-    let n = plant.model.dof();
+    let n = plant.body.dof();
     let steps = checked_steps(plant, traj, cfg, q0, dq0)?;
     let mut log = SimLog::with_capacity(n, steps / cfg.log_every + 1);
     let mut w = Work::new(n);

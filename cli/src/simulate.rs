@@ -1,6 +1,9 @@
 //! `dynid simulate --arm A --params P --trajectory T [--controller rhftc|ctc|pd] [--estimate P2]
 //! [--dt S] [--integrator rk4|implicit-euler] [--log-every N] [--out F]`: closed-loop simulation of
-//! a generated arm (RK4 or linearly implicit Euler plant with the parameter file's effects) tracking a trajectory; writes CSV `t, q…, dq…, ddq…, tau…`.
+//! an arm (RK4 or linearly implicit Euler plant with the parameter file's effects) tracking a
+//! trajectory; writes CSV `t, q…, dq…, ddq…, tau…`. A generated arm runs on its generated
+//! kernels; a D-H table or a URDF (imported in memory) on the reference recursions, and a URDF's
+//! own `<inertial>`s are the default `--params`.
 //!
 //! `T` is JSON as written by `dynid excite` (its `trajectory` field is used) or a bare trajectory
 //! (`{"kind": "sine", ...}`). The controller's model is `--estimate` (another parameter file) or,
@@ -16,10 +19,13 @@ use std::path::PathBuf;
 use anyhow::{Context, Result};
 
 use crate::{write_output, InputError};
-use dynid::arms::{resolve, ArmSource};
+use dynid::arms::{resolve, resolve_urdf, ArmSource};
 use dynid::control::{Controller, Ctc, Pd, Rhftc, RhftcGains};
 use dynid::data::{write_header, write_row};
+use dynid::dh::DhTable;
+use dynid::dynamics::{Dynamics, Generated, Reference};
 use dynid::params::{InertialParams, ParamsOptions};
+use dynid::reference::RefModel;
 use dynid::sim::{simulate, Integrator, Plant, SimConfig};
 use dynid::trajectory::TrajectorySpec;
 
@@ -41,12 +47,13 @@ pub enum IntegratorKind {
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Arm name (see `dynid arms`).
+    /// Arm name (see `dynid arms`), path to a D-H table (.toml) or a URDF (.urdf, imported as `import-urdf` does).
     #[arg(long)]
     pub arm: String,
-    /// True inertial parameters of the simulated arm (TOML, optional [effects]).
+    /// True inertial parameters of the simulated arm (TOML, optional [effects]); for a URDF arm
+    /// the default is the URDF's own `<inertial>`s.
     #[arg(long)]
-    pub params: PathBuf,
+    pub params: Option<PathBuf>,
     /// Trajectory JSON (from `dynid excite`, or a bare trajectory spec).
     #[arg(long)]
     pub trajectory: PathBuf,
@@ -148,13 +155,9 @@ fn read_trajectory(args: &Args, n: usize, arm: &str) -> Result<TrajectorySpec> {
 }
 
 /// The chosen controller with its gains (the paper's for a 2-joint arm, 4 otherwise, unless
-/// given), built on the model's `estimate` of the base parameters.
-fn controller(
-    args: &Args,
-    model: &'static dyn dynid::model::Model,
-    estimate: Vec<f64>,
-) -> Result<Box<dyn Controller>> {
-    let n = model.dof();
+/// given), built on the arm's dynamics with the `estimate` bound in.
+fn controller(args: &Args, estimate: Box<dyn Dynamics>) -> Result<Box<dyn Controller>> {
+    let n = estimate.dof();
     let paper = RhftcGains::paper();
     let default_kp = if n == 2 {
         paper.kp.clone()
@@ -181,21 +184,19 @@ fn controller(
         kd: vec![20.0; n],
     };
     Ok(match args.controller {
-        ControllerKind::Rhftc => Box::new(Rhftc::new(
-            model,
+        ControllerKind::Rhftc => Box::new(Rhftc::on(
             estimate,
             RhftcGains { kp, kd, ..paper },
             fallback,
         )),
-        ControllerKind::Ctc => Box::new(Ctc::new(model, estimate, kp, kd, fallback)),
+        ControllerKind::Ctc => Box::new(Ctc::on(estimate, kp, kd, fallback)),
         ControllerKind::Pd => Box::new(Pd { kp, kd }),
     })
 }
 
 /// One encoder count per joint: 2π/counts rad for a revolute joint, 1/counts m for a prismatic.
-fn encoder_resolution(model: &dyn dynid::model::Model, counts: f64) -> Result<Vec<f64>> {
-    let table = dynid::dh::DhTable::from_str(model.arm_toml(), model.name())?;
-    Ok(table
+fn encoder_resolution(table: &DhTable, counts: f64) -> Vec<f64> {
+    table
         .joints
         .iter()
         .map(|j| {
@@ -205,7 +206,7 @@ fn encoder_resolution(model: &dyn dynid::model::Model, counts: f64) -> Result<Ve
                 1.0 / counts
             }
         })
-        .collect())
+        .collect()
 }
 
 /// The log as CSV: `t`, `q`, then (unless `--positions-only`) `dq`, `ddq`, then `tau`.
@@ -238,37 +239,65 @@ fn write_log(args: &Args, log: &dynid::sim::SimLog, n: usize) -> Result<()> {
     })
 }
 
-pub fn run(args: &Args) -> Result<()> {
-    let model =
-        match resolve(&args.arm)? {
-            ArmSource::Generated(m) => m,
-            ArmSource::Table(_) => return Err(InputError(
-                "simulate needs a generated arm (a name from `dynid arms`), not a D-H table path"
-                    .into(),
-            )
-            .into()),
-        };
-    let n = model.dof();
-    check_numbers(args)?;
-    let opts = ParamsOptions::default();
-    let truth = InertialParams::from_path(&args.params, n, &opts)?;
-    let estimate = match &args.estimate {
-        Some(p) => base_params(
-            model,
-            &InertialParams::from_path(
-                p,
-                n,
-                &ParamsOptions {
-                    allow_nonphysical: true,
-                },
-            )?,
+/// The true parameters: `--params`, or a URDF arm's own inertials.
+fn truth(args: &Args, n: usize) -> Result<InertialParams> {
+    if let Some(p) = &args.params {
+        return Ok(InertialParams::from_path(p, n, &ParamsOptions::default())?);
+    }
+    match resolve_urdf(&args.arm)? {
+        Some(imported) => {
+            eprintln!(
+                "note: no --params: simulating {} with its URDF's own <inertial>s",
+                args.arm
+            );
+            Ok(imported.params)
+        }
+        None => Err(InputError(
+            "--params is required unless --arm is a URDF (whose <inertial>s are then used)".into(),
+        )
+        .into()),
+    }
+}
+
+/// The plant's and the controller's dynamics: the generated kernels on base parameters, or the
+/// reference recursions of a table on full parameters.
+fn bodies(
+    arm: &ArmSource,
+    truth: &InertialParams,
+    estimate: &InertialParams,
+) -> (Box<dyn Dynamics>, Box<dyn Dynamics>) {
+    match arm {
+        ArmSource::Generated(m) => (
+            Box::new(Generated::new(*m, base_params(*m, truth))),
+            Box::new(Generated::new(*m, base_params(*m, estimate))),
         ),
-        None => base_params(model, &truth),
+        ArmSource::Table(t) => (
+            Box::new(Reference::new(RefModel::new(t), truth.full_vector())),
+            Box::new(Reference::new(RefModel::new(t), estimate.full_vector())),
+        ),
+    }
+}
+
+pub fn run(args: &Args) -> Result<()> {
+    let arm = resolve(&args.arm)?;
+    let n = arm.dof();
+    check_numbers(args)?;
+    let truth = truth(args, n)?;
+    let estimate = match &args.estimate {
+        Some(p) => InertialParams::from_path(
+            p,
+            n,
+            &ParamsOptions {
+                allow_nonphysical: true,
+            },
+        )?,
+        None => truth.clone(),
     };
-    let spec = read_trajectory(args, n, model.name())?;
-    let mut controller = controller(args, model, estimate)?;
+    let spec = read_trajectory(args, n, arm.name())?;
+    let (body, believed) = bodies(&arm, &truth, &estimate);
+    let mut controller = controller(args, believed)?;
     let effects = (!truth.effects.is_empty()).then(|| truth.effects.clone());
-    let plant = Plant::new(model, base_params(model, &truth), effects);
+    let plant = Plant::on(body, effects);
     let cfg = SimConfig {
         dt: args.dt,
         log_every: args.log_every,
@@ -280,7 +309,7 @@ pub fn run(args: &Args) -> Result<()> {
     };
     let mut log = simulate(&plant, controller.as_mut(), spec.as_dyn(), &cfg)?;
     let resolution = match args.encoder_counts {
-        Some(counts) => Some(encoder_resolution(model, counts)?),
+        Some(counts) => Some(encoder_resolution(&arm.dh_table()?, counts)),
         None => None,
     };
     let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(args.seed);

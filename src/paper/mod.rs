@@ -229,13 +229,13 @@ impl Law {
 
 /// Runs the experiment of one step with the estimate `theta_hat`.
 fn run_step(
+    model: &dyn Model,
     plant: &Plant,
     cfg: &PaperConfig,
     law: Law,
     theta_hat: &[f64],
     traj: &Logistic,
 ) -> Result<(SimLog, Usage), SimError> {
-    let model = plant.model;
     let fallback = Pd {
         kp: cfg.fallback_kp.clone(),
         kd: cfg.fallback_kd.clone(),
@@ -300,7 +300,7 @@ pub fn iterate(
             let traj = problem.step_trajectory(design, s);
             let what = format!("iteration {it}, step {}", s + 1);
             let (log, usage) =
-                run_step(&plant, cfg, law, &theta_ctrl, &traj).map_err(|source| {
+                run_step(model, &plant, cfg, law, &theta_ctrl, &traj).map_err(|source| {
                     PaperError::Sim {
                         what: what.clone(),
                         source,

@@ -1,5 +1,5 @@
 //! Jacobian of the plant's forward dynamics, `∂q̈/∂q` and `∂q̈/∂q̇` at a held torque, from the
-//! generated derivative kernels plus the effects' per-joint slopes.
+//! arm's derivative kernels plus the effects' per-joint slopes.
 
 use super::{Plant, Work};
 use crate::cholesky::{cholesky, cholesky_solve};
@@ -50,8 +50,8 @@ impl Plant<'_> {
         }
         let armature = self.effects.as_ref().and_then(|e| e.armature.as_ref());
         let Some(ia) = armature else {
-            self.model
-                .forward_dynamics_derivatives(q, dq, &w.h, &self.theta, &mut w.d);
+            self.body
+                .forward_dynamics_derivatives(q, dq, &w.h, &mut w.d);
             let (aq, rest) = w.d.split_at(nn);
             let (av, minv) = rest.split_at(nn);
             for i in 0..n {
@@ -63,9 +63,9 @@ impl Plant<'_> {
             }
             return jq.iter().chain(jv.iter()).all(|x| x.is_finite());
         };
-        self.model
-            .inverse_dynamics_derivatives(q, dq, acc, &self.theta, &mut w.d[..2 * nn]);
-        self.model.mass_matrix(q, &self.theta, &mut w.m);
+        self.body
+            .inverse_dynamics_derivatives(q, dq, acc, &mut w.d[..2 * nn]);
+        self.body.mass_matrix(q, &mut w.m);
         for (j, ia) in ia.iter().enumerate() {
             w.m[j * n + j] += ia;
         }

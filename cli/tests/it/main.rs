@@ -16,4 +16,5 @@ mod payload;
 mod physical;
 mod reference;
 mod roundtrip;
+mod simulate;
 mod urdf;
