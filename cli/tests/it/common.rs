@@ -232,3 +232,14 @@ pub fn python_script(script: &str, args: &[&std::ffi::OsStr]) -> String {
     );
     text
 }
+
+/// A numeric CSV file (a trajectory, a log): its header line and its rows as numbers.
+pub fn read_csv(path: &std::path::Path) -> (String, Vec<Vec<f64>>) {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines();
+    let header = lines.next().unwrap().to_string();
+    let rows = lines
+        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+        .collect();
+    (header, rows)
+}

@@ -1,18 +1,7 @@
 //! `dynid simulate` on arms without generated kernels: a URDF (imported in memory) or a D-H
 //! table runs on the reference recursions, and must give the run the generated kernels give.
 
-use crate::common::dynid;
-
-/// The logged CSV as numbers, row by row.
-fn read_csv(path: &std::path::Path) -> (String, Vec<Vec<f64>>) {
-    let text = std::fs::read_to_string(path).unwrap();
-    let mut lines = text.lines();
-    let header = lines.next().unwrap().to_string();
-    let rows = lines
-        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
-        .collect();
-    (header, rows)
-}
+use crate::common::{dynid, read_csv};
 
 fn ok(o: std::process::Output) -> std::process::Output {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
