@@ -13,7 +13,7 @@ use dynid::arms::{resolve, resolve_urdf};
 use dynid::effects::Effect;
 use dynid::excitation::derived;
 use dynid::excitation::design::{design, DesignConfig, DesignError, Family};
-use dynid::excitation::limits::{self, LimitSources, LimitsFile, Overrides};
+use dynid::excitation::limits::{self, LimitSources, Limits, LimitsFile, Overrides};
 use dynid::excitation::objective::ObjectiveKind;
 use dynid::excitation::output;
 use dynid::params::{InertialParams, ParamsOptions};
@@ -121,12 +121,15 @@ fn parse_effects(spec: &str) -> Result<Vec<Effect>, InputError> {
     Ok(out)
 }
 
-pub fn run(args: &Args) -> Result<()> {
-    let imported = resolve_urdf(&args.arm)?;
-    let arm = resolve(&args.arm)?;
-    let table = arm.dh_table()?;
-    let dof = arm.dof();
-    let names: Vec<String> = match (&imported, table.joint_names()) {
+/// The limits from the arm, `--limits` and the flags, with derived acceleration limits where none is
+/// given, and the inertial parameters torques are checked with (`--params`, else a URDF's own).
+fn resolve_limits(
+    args: &Args,
+    imported: Option<&dynid::urdf::Imported>,
+    table: &dynid::dh::DhTable,
+) -> Result<(Limits, Option<InertialParams>)> {
+    let dof = table.dof();
+    let names: Vec<String> = match (imported, table.joint_names()) {
         (Some(i), _) => i.chain.clone(),
         (None, Some(n)) => n,
         _ => (1..=dof).map(|j| format!("joint {j}")).collect(),
@@ -146,14 +149,14 @@ pub fn run(args: &Args) -> Result<()> {
     };
     let mut sources = LimitSources {
         names,
-        arm: limits::from_table(&table),
+        arm: limits::from_table(table),
         arm_label: if imported.is_some() {
             "urdf"
         } else {
             "arm table"
         }
         .into(),
-        soft: match &imported {
+        soft: match imported {
             Some(i) => limits::soft_limits(std::path::Path::new(&args.arm), &i.chain),
             None => Vec::new(),
         },
@@ -170,7 +173,7 @@ pub fn run(args: &Args) -> Result<()> {
         derived_label: derived::LABEL.into(),
     };
     // Inertial parameters for the torque limits: --params, else a URDF's own <inertial>s.
-    let (params, params_label) = match (&args.params, &imported) {
+    let (params, params_label) = match (&args.params, imported) {
         (Some(p), _) => (
             Some(InertialParams::from_path(
                 p,
@@ -190,7 +193,7 @@ pub fn run(args: &Args) -> Result<()> {
                 merged.iter().map(|m| m.q_min.0.zip(m.q_max.0)).collect();
             let effort: Vec<Option<f64>> = merged.iter().map(|m| m.tau_max.0).collect();
             sources.derived_ddq =
-                derived::acceleration_limits(&table, &p.full_vector(), &ranges, &effort);
+                derived::acceleration_limits(table, &p.full_vector(), &ranges, &effort);
             let used: Vec<String> = merged
                 .iter()
                 .zip(&sources.derived_ddq)
@@ -218,6 +221,14 @@ pub fn run(args: &Args) -> Result<()> {
         eprintln!("note: {n}");
     }
     limits.notes = notes;
+    Ok((limits, params))
+}
+
+pub fn run(args: &Args) -> Result<()> {
+    let imported = resolve_urdf(&args.arm)?;
+    let arm = resolve(&args.arm)?;
+    let table = arm.dh_table()?;
+    let (limits, params) = resolve_limits(args, imported.as_ref(), &table)?;
     if !(args.budget_s.is_finite() && args.budget_s > 0.0) {
         return Err(InputError(format!("--budget-s must be > 0 (got {})", args.budget_s)).into());
     }

@@ -27,7 +27,7 @@
 //!     "p",
 //! )
 //! .unwrap();
-//! // a 2 kg point 0.5 m off a vertical axis: M11 = 0.5 kg·m², no gravity torque about it
+//! // 2 kg, centre of mass 0.5 m off a vertical axis, ZZ = 0.5 kg·m²: M11 = 0.5, no gravity torque
 //! let mut p = vec![0.0; 10];
 //! p[0..6].copy_from_slice(&[0.5, 0.0, 0.0, 0.5, 0.0, 0.5]); // XX XY XZ YY YZ ZZ about the joint
 //! p[6] = 1.0; // MX = m·x
