@@ -167,8 +167,9 @@ def column(effect: str, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray) -> np.nd
     return {"viscous": dq, "coulomb": np.sign(dq), "armature": ddq, "spring": q, "offset": np.ones_like(q)}[effect]
 
 
-def simulate(mujoco, spec: dict, urdf: Path, work: Path) -> tuple[list[Path], list[dict]]:  # noqa: ANN001
-    """Three logs of the case, and the effects with their coefficients (sized on the first run)."""
+def simulate(mujoco, spec: dict, urdf: Path, work: Path, runs: list | None = None) -> tuple[list[Path], list[dict]]:  # noqa: ANN001
+    """Three logs of the case, and the effects with their coefficients (sized on the first run). `runs`: the motions
+    `(t, q, dq, ddq)` to log instead of the case's own three (one log each, `run1.csv`…)."""
     model = mujoco.MjModel.from_xml_path(str(urdf))
     model.jnt_limited[:] = 0
     model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
@@ -176,11 +177,12 @@ def simulate(mujoco, spec: dict, urdf: Path, work: Path) -> tuple[list[Path], li
     rng = np.random.default_rng(spec["seed"] + 1_000_003)
     n = model.nv
     dt_sim = 1.0 / spec["rate"]
-    runs = []
-    for _ in range(3):
-        t = np.arange(0.0, spec["duration"], dt_sim)
-        q, dq, ddq = excitation(rng, spec["kinds"], t, spec["excitation"])
-        runs.append((t, q, dq, ddq))
+    if runs is None:
+        runs = []
+        for _ in range(3):
+            t = np.arange(0.0, spec["duration"], dt_sim)
+            q, dq, ddq = excitation(rng, spec["kinds"], t, spec["excitation"])
+            runs.append((t, q, dq, ddq))
 
     def rigid(q, dq, ddq):  # noqa: ANN001, ANN202
         tau = np.zeros_like(q)

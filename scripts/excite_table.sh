@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Measures `dynid excite` on the shipped arms at the default budget and prints the table rows of
-# docs/excitation.md (arm, family, limits, cond, wall time, feasible). Usage:
+# docs/excitation.md (arm, family, limits, cond, wall time, feasible). Runs one design at a time;
+# each takes both cores. Usage:
 #   cargo build --release && scripts/excite_table.sh [EXTRA excite flags]
 set -euo pipefail
 B=${DYNID:-./target/release/dynid}
@@ -22,13 +23,17 @@ import json, sys
 d = json.load(open(sys.argv[1]))
 fam = d["family"]["family"]
 print(f"| {sys.argv[2]} | {fam} | {sys.argv[3]} | {len(d['columns'])} | {d['cond']:.1f} | {sys.argv[4]} | "
-      f"{'yes' if d['feasible'] else 'no'} ({d['generations']} gen.) |")
+      f"{'yes' if d['feasible'] else 'no'} ({d['generations']} gen., {d['check_grid_hz']:g} Hz check) |")
 PY
     else
         echo "| $label | — | $limits | — | — | $secs | no: exit $code: $(tail -c 160 "$dir.err" | tr '\n' ' ') |"
     fi
 }
 EXTRA=("$@")
+for a in ur5e ur10e panda; do
+    row "$a.urdf" "URDF alone" --arm "data/urdf/$a.urdf"
+done
+row "tiago.urdf (8 DOF)" "URDF alone" --arm data/real/tiago_figaroh/tiago.urdf
 for a in ur5e ur10e panda; do
     row "$a.urdf" "URDF + $a.limits.toml" --arm "data/urdf/$a.urdf" --limits "data/urdf/$a.limits.toml"
 done

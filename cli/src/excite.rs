@@ -11,8 +11,9 @@ use anyhow::Result;
 use crate::InputError;
 use dynid::arms::{resolve, resolve_urdf};
 use dynid::effects::Effect;
+use dynid::excitation::derived;
 use dynid::excitation::design::{design, DesignConfig, DesignError, Family};
-use dynid::excitation::limits::{self, LimitSources, LimitsFile, Overrides};
+use dynid::excitation::limits::{self, LimitSources, Limits, LimitsFile, Overrides};
 use dynid::excitation::objective::ObjectiveKind;
 use dynid::excitation::output;
 use dynid::params::{InertialParams, ParamsOptions};
@@ -120,12 +121,15 @@ fn parse_effects(spec: &str) -> Result<Vec<Effect>, InputError> {
     Ok(out)
 }
 
-pub fn run(args: &Args) -> Result<()> {
-    let imported = resolve_urdf(&args.arm)?;
-    let arm = resolve(&args.arm)?;
-    let table = arm.dh_table()?;
-    let dof = arm.dof();
-    let names: Vec<String> = match (&imported, table.joint_names()) {
+/// The limits from the arm, `--limits` and the flags, with derived acceleration limits where none is
+/// given, and the inertial parameters torques are checked with (`--params`, else a URDF's own).
+fn resolve_limits(
+    args: &Args,
+    imported: Option<&dynid::urdf::Imported>,
+    table: &dynid::dh::DhTable,
+) -> Result<(Limits, Option<InertialParams>)> {
+    let dof = table.dof();
+    let names: Vec<String> = match (imported, table.joint_names()) {
         (Some(i), _) => i.chain.clone(),
         (None, Some(n)) => n,
         _ => (1..=dof).map(|j| format!("joint {j}")).collect(),
@@ -143,16 +147,16 @@ pub fn run(args: &Args) -> Result<()> {
         )),
         None => None,
     };
-    let sources = LimitSources {
+    let mut sources = LimitSources {
         names,
-        arm: limits::from_table(&table),
+        arm: limits::from_table(table),
         arm_label: if imported.is_some() {
             "urdf"
         } else {
             "arm table"
         }
         .into(),
-        soft: match &imported {
+        soft: match imported {
             Some(i) => limits::soft_limits(std::path::Path::new(&args.arm), &i.chain),
             None => Vec::new(),
         },
@@ -165,16 +169,66 @@ pub fn run(args: &Args) -> Result<()> {
             tau_max: list("--tau-max", &args.tau_max)?,
             q0: list("--q0", &args.q0)?,
         },
+        derived_ddq: Vec::new(),
+        derived_label: derived::LABEL.into(),
     };
-    let limits = sources.resolve().map_err(|e| InputError(e.to_string()))?;
-    let params = match &args.params {
-        Some(p) => Some(InertialParams::from_path(
-            p,
-            dof,
-            &ParamsOptions::default(),
-        )?),
-        None => None,
+    // Inertial parameters for the torque limits: --params, else a URDF's own <inertial>s.
+    let (params, params_label) = match (&args.params, imported) {
+        (Some(p), _) => (
+            Some(InertialParams::from_path(
+                p,
+                dof,
+                &ParamsOptions::default(),
+            )?),
+            p.display().to_string(),
+        ),
+        (None, Some(i)) => (Some(i.params.clone()), "the URDF's <inertial>s".to_string()),
+        (None, None) => (None, String::new()),
     };
+    let mut notes = Vec::new();
+    if let Some(p) = &params {
+        let merged: Vec<_> = (0..dof).map(|j| sources.merged(j)).collect();
+        if merged.iter().any(|m| m.ddq_max.0.is_none()) {
+            let ranges: Vec<Option<(f64, f64)>> =
+                merged.iter().map(|m| m.q_min.0.zip(m.q_max.0)).collect();
+            let effort: Vec<Option<f64>> = merged.iter().map(|m| m.tau_max.0).collect();
+            sources.derived_ddq =
+                derived::acceleration_limits(table, &p.full_vector(), &ranges, &effort);
+            let used: Vec<String> = merged
+                .iter()
+                .zip(&sources.derived_ddq)
+                .enumerate()
+                .filter_map(|(j, (m, d))| match (m.ddq_max.0, d) {
+                    (None, Ok(v)) => Some(format!("joint {} {v:.3}", j + 1)),
+                    _ => None,
+                })
+                .collect();
+            if !used.is_empty() {
+                notes.push(format!(
+                    "ddq_max derived from effort and inertia ((τ_max − max|g|)/max M_jj, {params_label}): {}",
+                    used.join(", ")
+                ));
+            }
+        }
+    }
+    let mut limits = sources.resolve().map_err(|e| InputError(e.to_string()))?;
+    if params.is_some() && limits.joints.iter().any(|l| l.tau_max.is_some()) {
+        notes.push(format!(
+            "tau_max checked through the inverse dynamics with {params_label}"
+        ));
+    }
+    for n in &notes {
+        eprintln!("note: {n}");
+    }
+    limits.notes = notes;
+    Ok((limits, params))
+}
+
+pub fn run(args: &Args) -> Result<()> {
+    let imported = resolve_urdf(&args.arm)?;
+    let arm = resolve(&args.arm)?;
+    let table = arm.dh_table()?;
+    let (limits, params) = resolve_limits(args, imported.as_ref(), &table)?;
     if !(args.budget_s.is_finite() && args.budget_s > 0.0) {
         return Err(InputError(format!("--budget-s must be > 0 (got {})", args.budget_s)).into());
     }

@@ -5,8 +5,10 @@
 //! Sources, later ones overriding earlier ones field by field: the arm's table (for a URDF the
 //! `<limit lower upper velocity effort>` of each joint, tightened by `<safety_controller>`'s soft
 //! limits where present), a limits TOML ([`LimitsFile`]), then explicit per-joint lists (the
-//! CLI's `--q-min` … flags). A joint left without a position, velocity or acceleration limit is
-//! an error naming it.
+//! CLI's `--q-min` … flags). A joint that none of these gives an acceleration limit takes one
+//! derived from the arm's effort limit and inertia where it can ([`super::derived`], the lowest
+//! priority source). A joint left without a position, velocity or acceleration limit is an error
+//! naming it.
 //!
 //! ```
 //! use dynid::excitation::limits::{LimitSources, Overrides};
@@ -51,6 +53,9 @@ pub struct Limits {
     pub joints: Vec<JointLimits>,
     /// Start and end posture.
     pub q0: Vec<f64>,
+    /// Where limits were derived rather than given, and which model the torques are checked
+    /// with (printed by the CLI, kept in `excitation.json`).
+    pub notes: Vec<String>,
 }
 
 /// One joint's partial limits from one source.
@@ -87,18 +92,35 @@ pub struct LimitSources {
     /// A limits TOML and its path (for the source labels).
     pub file: Option<(String, Vec<Partial>)>,
     pub overrides: Overrides,
+    /// Last resort for a joint no other source gives an acceleration limit: a value derived from
+    /// the arm's model ([`super::derived`]) or why there is none, per joint, and its label.
+    /// Empty: none derived.
+    pub derived_ddq: Vec<Result<f64, String>>,
+    pub derived_label: String,
+}
+
+/// One joint's values after merging the sources, each with the label of the source it came from.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Merged {
+    pub q_min: (Option<f64>, String),
+    pub q_max: (Option<f64>, String),
+    pub dq_max: (Option<f64>, String),
+    pub ddq_max: (Option<f64>, String),
+    pub tau_max: (Option<f64>, String),
 }
 
 /// Bad or missing limits; every message names the joint (or file, line and field).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum LimitError {
-    #[error("joint {joint} ({name}) has no {what} — give it in the URDF, in --limits FILE ({key} = …) or with {flag}")]
+    #[error("joint {joint} ({name}) has no {what}{why} — give it in the URDF, in --limits FILE ({key} = …) or with {flag}")]
     Missing {
         joint: usize,
         name: String,
         what: &'static str,
         key: &'static str,
         flag: &'static str,
+        /// Why none could be derived (`", and none can be derived: …"`), or empty.
+        why: String,
     },
     #[error("joint {joint} ({name}): {problem}")]
     Bad {
@@ -274,56 +296,32 @@ impl LimitSources {
         let mut q0 = Vec::with_capacity(n);
         for j in 0..n {
             let name = self.names[j].clone();
-            // Each field: the last source that has it wins; its label is kept for the report.
-            let pick = |arm: Option<f64>,
-                        file: Option<f64>,
-                        flag: Option<f64>,
-                        flag_name: &'static str|
-             -> (Option<f64>, String) {
-                if let Some(v) = flag {
-                    (Some(v), flag_name.to_string())
-                } else if let Some(v) = file {
-                    let label = self.file.as_ref().map(|f| f.0.clone()).unwrap_or_default();
-                    (Some(v), label)
-                } else {
-                    (arm, self.arm_label.clone())
-                }
+            let Merged {
+                q_min: (lo, lo_src),
+                q_max: (hi, hi_src),
+                dq_max: (dq, dq_src),
+                ddq_max: (ddq, ddq_src),
+                tau_max: (tau, tau_src),
+            } = self.merged(j);
+            let (ddq, ddq_src, why) = match (ddq, self.derived_ddq.get(j)) {
+                (Some(v), _) => (Some(v), ddq_src, String::new()),
+                (None, Some(Ok(v))) => (Some(*v), self.derived_label.clone(), String::new()),
+                (None, Some(Err(e))) => (None, ddq_src, format!(", and none can be derived: {e}")),
+                (None, None) => (None, ddq_src, String::new()),
             };
-            let arm = self.arm.get(j).cloned().unwrap_or_default();
-            let file = self
-                .file
-                .as_ref()
-                .and_then(|f| f.1.get(j).cloned())
-                .unwrap_or_default();
-            let flag = |v: &Option<Vec<f64>>| v.as_ref().map(|v| v[j]);
-            let soft = self.soft.get(j).copied().unwrap_or((None, None));
-            // The safety controller's soft range is where the controller lets the joint go.
-            let arm_lo = match (arm.q_min, soft.0) {
-                (Some(a), Some(s)) => Some(a.max(s)),
-                (a, None) => a,
-                (None, s) => s,
-            };
-            let arm_hi = match (arm.q_max, soft.1) {
-                (Some(a), Some(s)) => Some(a.min(s)),
-                (a, None) => a,
-                (None, s) => s,
-            };
-            let (lo, lo_src) = pick(arm_lo, file.q_min, flag(&o.q_min), "--q-min");
-            let (hi, hi_src) = pick(arm_hi, file.q_max, flag(&o.q_max), "--q-max");
-            let (dq, dq_src) = pick(arm.dq_max, file.dq_max, flag(&o.dq_max), "--dq-max");
-            let (ddq, ddq_src) = pick(arm.ddq_max, file.ddq_max, flag(&o.ddq_max), "--ddq-max");
-            let (tau, tau_src) = pick(arm.tau_max, file.tau_max, flag(&o.tau_max), "--tau-max");
-            let missing = |what, key, flag| LimitError::Missing {
+            let missing = |what, key, flag, why: &str| LimitError::Missing {
                 joint: j + 1,
                 name: name.clone(),
                 what,
                 key,
                 flag,
+                why: why.to_string(),
             };
-            let lo = lo.ok_or_else(|| missing("lower position limit", "q_min", "--q-min"))?;
-            let hi = hi.ok_or_else(|| missing("upper position limit", "q_max", "--q-max"))?;
-            let dq = dq.ok_or_else(|| missing("velocity limit", "dq_max", "--dq-max"))?;
-            let ddq = ddq.ok_or_else(|| missing("acceleration limit", "ddq_max", "--ddq-max"))?;
+            let lo = lo.ok_or_else(|| missing("lower position limit", "q_min", "--q-min", ""))?;
+            let hi = hi.ok_or_else(|| missing("upper position limit", "q_max", "--q-max", ""))?;
+            let dq = dq.ok_or_else(|| missing("velocity limit", "dq_max", "--dq-max", ""))?;
+            let ddq =
+                ddq.ok_or_else(|| missing("acceleration limit", "ddq_max", "--ddq-max", &why))?;
             let bad = |problem: String| LimitError::Bad {
                 joint: j + 1,
                 name: name.clone(),
@@ -345,7 +343,7 @@ impl LimitSources {
                     }
                 }
             }
-            let start = flag(&o.q0).unwrap_or(0.5 * (lo + hi));
+            let start = o.q0.as_ref().map_or(0.5 * (lo + hi), |v| v[j]);
             if !(start > lo && start < hi) {
                 return Err(bad(format!(
                     "q0 = {start} is not strictly inside [q_min, q_max] = [{lo}, {hi}]: the motion starts and ends there — pass --q0 inside the range"
@@ -367,7 +365,57 @@ impl LimitSources {
                 source,
             });
         }
-        Ok(Limits { joints, q0 })
+        Ok(Limits {
+            joints,
+            q0,
+            notes: Vec::new(),
+        })
+    }
+
+    /// Joint `j`'s values from the arm, the file and the flags (the last source that has a
+    /// field wins; the safety controller narrows the arm's range), before anything is derived.
+    pub fn merged(&self, j: usize) -> Merged {
+        let o = &self.overrides;
+        let pick = |arm: Option<f64>,
+                    file: Option<f64>,
+                    flag: Option<f64>,
+                    flag_name: &'static str|
+         -> (Option<f64>, String) {
+            if let Some(v) = flag {
+                (Some(v), flag_name.to_string())
+            } else if let Some(v) = file {
+                let label = self.file.as_ref().map(|f| f.0.clone()).unwrap_or_default();
+                (Some(v), label)
+            } else {
+                (arm, self.arm_label.clone())
+            }
+        };
+        let arm = self.arm.get(j).cloned().unwrap_or_default();
+        let file = self
+            .file
+            .as_ref()
+            .and_then(|f| f.1.get(j).cloned())
+            .unwrap_or_default();
+        let flag = |v: &Option<Vec<f64>>| v.as_ref().and_then(|v| v.get(j).copied());
+        let soft = self.soft.get(j).copied().unwrap_or((None, None));
+        // The safety controller's soft range is where the controller lets the joint go.
+        let arm_lo = match (arm.q_min, soft.0) {
+            (Some(a), Some(s)) => Some(a.max(s)),
+            (a, None) => a,
+            (None, s) => s,
+        };
+        let arm_hi = match (arm.q_max, soft.1) {
+            (Some(a), Some(s)) => Some(a.min(s)),
+            (a, None) => a,
+            (None, s) => s,
+        };
+        Merged {
+            q_min: pick(arm_lo, file.q_min, flag(&o.q_min), "--q-min"),
+            q_max: pick(arm_hi, file.q_max, flag(&o.q_max), "--q-max"),
+            dq_max: pick(arm.dq_max, file.dq_max, flag(&o.dq_max), "--dq-max"),
+            ddq_max: pick(arm.ddq_max, file.ddq_max, flag(&o.ddq_max), "--ddq-max"),
+            tau_max: pick(arm.tau_max, file.tau_max, flag(&o.tau_max), "--tau-max"),
+        }
     }
 }
 
@@ -434,7 +482,34 @@ mod tests {
                 ddq_max: Some(vec![3.0, 4.0]),
                 ..Overrides::default()
             },
+            derived_ddq: Vec::new(),
+            derived_label: String::new(),
         }
+    }
+
+    /// A derived acceleration limit fills only a joint no source gives one, and a joint it
+    /// cannot fill stays an error that names it and says why.
+    #[test]
+    fn derived_acceleration_is_the_last_resort() {
+        let mut s = sources();
+        s.overrides.ddq_max = None;
+        s.file = Some((
+            "lim.toml".into(),
+            LimitsFile::parse("[[joint]]\n[[joint]]\nddq_max = 7\n", "lim.toml", 2).unwrap(),
+        ));
+        s.derived_ddq = vec![Ok(20.0), Ok(30.0)];
+        s.derived_label = "urdf effort/inertia".into();
+        let l = s.resolve().unwrap();
+        assert_eq!(l.joints[0].ddq_max, 20.0);
+        assert!(l.joints[0].source.contains("ddq: urdf effort/inertia"));
+        assert_eq!(l.joints[1].ddq_max, 7.0); // the file wins over the derived value
+        assert!(l.joints[1].source.contains("ddq: lim.toml"));
+        s.derived_ddq[0] = Err("it has no effort limit either".into());
+        let e = s.resolve().unwrap_err().to_string();
+        assert!(
+            e.contains("joint 1 (a)") && e.contains("no effort limit") && e.contains("--ddq-max"),
+            "{e}"
+        );
     }
 
     #[test]

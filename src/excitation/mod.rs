@@ -16,11 +16,13 @@
 //! ```
 //!
 //! Design for any arm under its own limits (`dynid excite`) lives in the submodules, one piece per
-//! file: [`limits`] (where the limits come from), [`fourier_quintic`](crate::trajectory::fourier_quintic) and [`logistic_n`](crate::trajectory::logistic_n) (the
+//! file: [`limits`] (where the limits come from), [`derived`] (acceleration limits from effort and
+//! inertia), [`fourier_quintic`](crate::trajectory::fourier_quintic) and [`logistic_n`](crate::trajectory::logistic_n) (the
 //! families), [`objective`] (the observation matrix), [`cmaes`] (the optimiser), [`design`] (the
 //! problem and its checks) and [`output`] (the files written).
 
 pub mod cmaes;
+pub mod derived;
 pub mod design;
 pub mod limits;
 pub mod objective;

@@ -310,6 +310,12 @@ pub fn report(arm: &str, d: &Design, limits: &Limits, cfg: &DesignConfig) -> Str
     if let Some(z) = d.check.tool_z_min {
         s.push_str(&format!("\nLowest tool height: {z:.4} m.\n"));
     }
+    if !limits.notes.is_empty() {
+        s.push_str("\nLimits:\n\n");
+        for n in &limits.notes {
+            s.push_str(&format!("- {n}\n"));
+        }
+    }
     s.push_str("\n![q](q.svg)\n\n![dq](dq.svg)\n\n![ddq](ddq.svg)\n\n![singular values](singular_values.svg)\n");
     s
 }

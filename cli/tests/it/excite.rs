@@ -282,8 +282,16 @@ fn excite_infeasible_limits_exit_non_zero() {
 #[test]
 fn excite_bad_limits_name_joint_and_value() {
     let dir = tempfile::tempdir().unwrap();
-    let arm = urdf("ur5e.urdf");
-    let run = |extra: &[&str]| {
+    let ur5e = urdf("ur5e.urdf");
+    // the UR5e URDF without its effort limits: no acceleration limit can be derived
+    let no_effort = dir.path().join("no_effort.urdf");
+    let text = std::fs::read_to_string(&ur5e).unwrap();
+    let stripped = text
+        .replace("effort=\"150\"", "effort=\"0\"")
+        .replace("effort=\"28\"", "effort=\"0\"");
+    assert_ne!(stripped, text);
+    std::fs::write(&no_effort, stripped).unwrap();
+    let run_on = |arm: &Path, extra: &[&str]| {
         let mut args = vec![
             "excite",
             "--arm",
@@ -296,10 +304,29 @@ fn excite_bad_limits_name_joint_and_value() {
         assert_eq!(out.status.code(), Some(2), "{extra:?}");
         String::from_utf8_lossy(&out.stderr).into_owned()
     };
-    // the URDF has no acceleration limits
-    let e = run(&[]);
+    let run = |extra: &[&str]| run_on(&ur5e, extra);
+    // no acceleration limit anywhere, and no effort to derive one from
+    let e = run_on(&no_effort, &[]);
     assert!(
-        e.contains("joint 1 (shoulder_pan_joint)") && e.contains("--ddq-max"),
+        e.contains("joint 1 (shoulder_pan_joint)")
+            && e.contains("acceleration limit")
+            && e.contains("no effort limit")
+            && e.contains("--ddq-max"),
+        "{e}"
+    );
+    // an effort that cannot hold the arm: the derivation says so, with the value
+    let e = run(&["--tau-max", "150,1,150,28,28,28"]);
+    assert!(
+        e.contains("joint 2 (shoulder_lift_joint)")
+            && e.contains("effort 1 N·m")
+            && e.contains("gravity")
+            && e.contains("--ddq-max"),
+        "{e}"
+    );
+    // a table without any limit: the first missing one is named
+    let e = run_on(Path::new("puma560"), &[]);
+    assert!(
+        e.contains("joint 1") && e.contains("lower position limit") && e.contains("--q-min"),
         "{e}"
     );
     let e = run(&["--ddq-max", "4", "--q-min", "0,0,0,1,0,0", "--q-max", "1"]);
@@ -310,4 +337,76 @@ fn excite_bad_limits_name_joint_and_value() {
     assert!(e.contains("joint 1") && e.contains("--period 2"), "{e}");
     let e = run(&["--ddq-max", "4,4"]);
     assert!(e.contains("--ddq-max") && e.contains("2 values"), "{e}");
+}
+
+/// Every URDF the project ships gets a feasible design from the URDF alone: its position,
+/// velocity and effort limits, acceleration limits derived from effort and inertia, torques
+/// checked through its own `<inertial>`s. The file's 1 kHz grid stays within every limit, the
+/// torques recomputed by the reference Newton–Euler (checked against Pinocchio in
+/// tests/pinocchio) included; the limit sources say where each value came from.
+#[test]
+fn excite_from_the_urdf_alone_on_every_shipped_urdf() {
+    let root = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.."));
+    for path in [
+        urdf("ur5e.urdf"),
+        urdf("ur10e.urdf"),
+        urdf("panda.urdf"),
+        root.join("data/real/tiago_figaroh/tiago.urdf"),
+    ] {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dynid(&[
+            "excite",
+            "--arm",
+            path.to_str().unwrap(),
+            "--generations",
+            "3",
+            "--rate",
+            "1000",
+            "--out",
+            dir.path().to_str().unwrap(),
+        ]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{}: {err}", path.display());
+        assert!(err.contains("note: ddq_max derived"), "{err}");
+        let doc: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(dir.path().join("excitation.json")).unwrap(),
+        )
+        .unwrap();
+        let imported =
+            dynid::urdf::import_file(&path, &dynid::urdf::ImportOptions::default()).unwrap();
+        let n = imported.table.dof();
+        let lim = &doc["limits"]["joints"];
+        let get = |j: usize, k: &str| lim[j][k].as_f64().unwrap();
+        for j in 0..n {
+            let src = lim[j]["source"].as_str().unwrap();
+            assert!(src.contains("ddq: urdf effort/inertia"), "{src}");
+            assert_eq!(Some(get(j, "tau_max")), imported.table.joints[j].tau_max);
+        }
+        let notes = doc["limits"]["notes"].to_string();
+        assert!(notes.contains("tau_max checked"), "{notes}");
+        let rows = read_csv(&dir.path().join("trajectory.csv")).rows;
+        let model = dynid::reference::RefModel::new(&imported.table);
+        let mut ws = model.workspace();
+        let p = imported.params.full_vector();
+        let mut tau = vec![0.0; n];
+        let mut peak_use = 0.0_f64;
+        for r in &rows {
+            let (q, dq, ddq) = (&r[1..1 + n], &r[1 + n..1 + 2 * n], &r[1 + 2 * n..1 + 3 * n]);
+            model.inverse_dynamics(&mut ws, q, dq, ddq, &p, &mut tau);
+            for j in 0..n {
+                let t = tau[j] + imported.params.effects.torque(j, q[j], dq[j], ddq[j]);
+                for u in [
+                    (q[j] - get(j, "q_max")) / (get(j, "q_max") - get(j, "q_min")) + 1.0,
+                    (get(j, "q_min") - q[j]) / (get(j, "q_max") - get(j, "q_min")) + 1.0,
+                    dq[j].abs() / get(j, "dq_max"),
+                    ddq[j].abs() / get(j, "ddq_max"),
+                    t.abs() / get(j, "tau_max"),
+                ] {
+                    peak_use = peak_use.max(u);
+                }
+            }
+        }
+        // the design's own check is on this grid with the same model: no tolerance beyond rounding
+        assert!(peak_use <= 1.0 + 1e-9, "{}: {peak_use}", path.display());
+    }
 }
