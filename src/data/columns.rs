@@ -109,7 +109,7 @@ mod tests {
             (&names, vec![1.0, f64::NAN, 0.0, 0.0, 0.0], "x:2: q2: `NaN`"),
             (
                 &names,
-                [&good[..], &[0.0, 0.0, 0.0, 0.0, f64::INFINITY]].concat(),
+                [&good[..], &[0.0, 0.0, 0.02, 0.0, f64::INFINITY]].concat(),
                 "x:4: q1: `inf`",
             ),
             (
