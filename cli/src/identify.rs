@@ -167,9 +167,9 @@ pub fn run(args: &Args) -> Result<()> {
     if args.leave_one_out {
         let outs = request.leave_one_out(&arm, &train);
         bar.finish_and_clear();
-        let (outs, warnings, notes) = outs?;
-        print_notes(&notes, &warnings);
-        let summary = write_leave_one_out(&args.out, &outs, &command, &arm)?;
+        let folds = outs?;
+        print_notes(&folds.notes, &folds.warnings);
+        let summary = write_leave_one_out(&args.out, &folds.outs, &command, &arm)?;
         print!("{summary}");
         return Ok(());
     }

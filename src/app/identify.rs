@@ -225,17 +225,26 @@ impl IdentifyRequest {
     }
 
     /// Holds each of `train` out in turn: one outcome per fold, and the folds' warnings.
-    pub fn leave_one_out(
-        &self,
-        arm: &ArmSource,
-        train: &[DataSource],
-    ) -> Result<(Vec<Outcome>, Vec<String>, Vec<String>), AppError> {
+    pub fn leave_one_out(&self, arm: &ArmSource, train: &[DataSource]) -> Result<Folds, AppError> {
         let mut notes = Vec::new();
         let logs = self.open(train, &mut notes)?;
         let outs = identify::leave_one_out(arm, logs, &self.config).map_err(identify_error)?;
         let warnings = self.warnings(&outs.iter().collect::<Vec<_>>())?;
-        Ok((outs, warnings, notes))
+        Ok(Folds {
+            outs,
+            warnings,
+            notes,
+        })
     }
+}
+
+/// A leave-one-out study: one outcome per held-out source, and (as in [`Identified`]) the
+/// warnings and the readers' notes.
+#[derive(Debug)]
+pub struct Folds {
+    pub outs: Vec<Outcome>,
+    pub warnings: Vec<String>,
+    pub notes: Vec<String>,
 }
 
 /// What [`Identified::write`] wrote.
