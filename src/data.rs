@@ -21,12 +21,17 @@
 //! ```
 
 use std::fmt;
-use std::io::{BufRead, BufReader, Read, Write};
+use std::io::{BufRead, BufReader, Read};
 use std::path::Path;
 
 use rayon::prelude::*;
 
 use crate::diag::{did_you_mean, Location};
+
+mod columns;
+mod write;
+
+pub use write::{write_header, write_row};
 
 /// A sampled trajectory; `q`, `dq`, `ddq`, `tau` are row-major (`len() × dof`).
 #[derive(Debug, Clone, PartialEq)]
@@ -325,6 +330,25 @@ impl Columns {
     }
 }
 
+impl Columns {
+    /// The blocks the columns carry.
+    fn layout(&self) -> RowLayout {
+        RowLayout {
+            dof: self.dof,
+            dq: self.blocks[Block::Dq as usize].is_some(),
+            ddq: self.blocks[Block::Ddq as usize].is_some(),
+            tau: self.blocks[Block::Tau as usize].is_some(),
+        }
+    }
+
+    /// The columns in the canonical row order (`t, q.., [dq..], [ddq..], [tau..]`).
+    fn order(&self) -> Vec<usize> {
+        std::iter::once(self.t)
+            .chain(self.blocks.iter().flatten().flatten().copied())
+            .collect()
+    }
+}
+
 const GZIP_MAGIC: [u8; 2] = [0x1f, 0x8b];
 
 /// Opens `path` for reading, an error naming it if that fails.
@@ -546,46 +570,6 @@ impl Trajectory {
             tau: self.tau.as_ref().map(cut),
         }
     }
-
-    /// Writes the trajectory as CSV with the canonical header (only the blocks present).
-    pub fn write_csv(&self, w: &mut dyn Write) -> std::io::Result<()> {
-        let h = header(
-            self.dof,
-            self.dq.is_some(),
-            self.ddq.is_some(),
-            self.tau.is_some(),
-        );
-        let mut row = Vec::with_capacity(h.len());
-        write_header(w, &h)?;
-        for k in 0..self.len() {
-            self.row_into(k, &mut row);
-            write_row(w, &row)?;
-        }
-        Ok(())
-    }
-}
-
-/// Writes a CSV header line.
-pub fn write_header(w: &mut dyn Write, names: &[String]) -> std::io::Result<()> {
-    writeln!(w, "{}", names.join(","))
-}
-
-/// Writes one CSV row of numbers, each in its shortest exactly-round-tripping form.
-pub fn write_row(w: &mut dyn Write, values: &[f64]) -> std::io::Result<()> {
-    for (i, v) in values.iter().enumerate() {
-        if i > 0 {
-            w.write_all(b",")?;
-        }
-        // `{}` never uses an exponent (1e-300 would print 300 digits); `{:e}` is ugly for
-        // everyday magnitudes. Both are shortest round-trip representations.
-        let a = v.abs();
-        if a == 0.0 || (1e-5..1e16).contains(&a) {
-            write!(w, "{v}")?;
-        } else {
-            write!(w, "{v:e}")?;
-        }
-    }
-    w.write_all(b"\n")
 }
 
 /// A CSV reader error as a located data error (`last_line`: the last line read, for errors
@@ -642,6 +626,14 @@ fn parse_cell(raw: &[u8]) -> Result<f64, DataErrorKind> {
     }
 }
 
+/// A header cell as a column name: spaces and a byte-order mark dropped, lower case.
+fn column_name(raw: &str) -> String {
+    raw.trim()
+        .trim_start_matches('\u{feff}')
+        .trim()
+        .to_ascii_lowercase()
+}
+
 /// The header record: the file's columns checked against the arm (`want_dof`), and its line.
 fn read_header<R: Read>(
     rdr: &mut csv::Reader<R>,
@@ -663,13 +655,7 @@ fn read_header<R: Read>(
     let header_line = record.position().map_or(1, |p| p.line() as usize);
     let names: Vec<String> = record
         .iter()
-        .map(|f| {
-            String::from_utf8_lossy(f)
-                .trim()
-                .trim_start_matches('\u{feff}')
-                .trim()
-                .to_ascii_lowercase()
-        })
+        .map(|f| column_name(&String::from_utf8_lossy(f)))
         .collect();
     let cols = Columns::from_header(names, want_dof, file, header_line)?;
     Ok((cols, header_line))
@@ -782,20 +768,9 @@ fn parse<R: Read>(
     let mut record = csv::ByteRecord::new();
     let (cols, header_line) = read_header(&mut rdr, &mut record, file, want_dof, gzip)?;
     let mut last_line = header_line;
-    let ncols = cols.names.len();
-
-    let layout = RowLayout {
-        dof: cols.dof,
-        dq: cols.blocks[Block::Dq as usize].is_some(),
-        ddq: cols.blocks[Block::Ddq as usize].is_some(),
-        tau: cols.blocks[Block::Tau as usize].is_some(),
-    };
-    // File columns in the canonical row order.
-    let order: Vec<usize> = std::iter::once(cols.t)
-        .chain(cols.blocks.iter().flatten().flatten().copied())
-        .collect();
+    let (layout, order) = (cols.layout(), cols.order());
     let width = layout.width();
-    let (mut rows, mut prev) = (0usize, f64::NEG_INFINITY);
+    let mut check = RowCheck::new(file, &cols, layout);
     // Records are read a batch at a time; a batch's cells are parsed on rayon's threads while
     // this one reads the next, then its rows are checked and handed over in order (so the first
     // error in the file is the one reported, as row by row).
@@ -810,50 +785,9 @@ fn parse<R: Read>(
             }
         });
         for i in 0..cur.len {
-            let line = cur.lines[i];
-            let at = |col: usize, kind| DataError {
-                loc: Location {
-                    file: file.to_string(),
-                    line: Some(line),
-                    field: Some(cols.names[col].clone()),
-                },
-                kind: Box::new(kind),
-            };
-            let (tk, bad) = match std::mem::replace(&mut cur.status[i], Parsed::Row(0.0)) {
-                Parsed::FieldCount(found) => {
-                    return Err(DataError {
-                        loc: Location {
-                            file: file.to_string(),
-                            line: Some(line),
-                            field: None,
-                        },
-                        kind: Box::new(DataErrorKind::FieldCount {
-                            found,
-                            expected: ncols,
-                        }),
-                    })
-                }
-                Parsed::BadTime(kind) => return Err(at(cols.t, kind)),
-                Parsed::Row(tk) => (tk, None),
-                Parsed::BadCell { t, col, kind } => (t, Some((col, kind))),
-            };
-            if rows > 0 && tk <= prev {
-                return Err(at(
-                    cols.t,
-                    DataErrorKind::TimeNotIncreasing {
-                        previous: prev,
-                        current: tk,
-                    },
-                ));
-            }
-            if let Some((col, kind)) = bad {
-                return Err(at(col, kind));
-            }
-            sink(&layout, &cur.values[i * width..(i + 1) * width]).map_err(|e| DataError {
-                loc: Location::file(file),
-                kind: Box::new(DataErrorKind::TempFile(e)),
-            })?;
-            (rows, prev) = (rows + 1, tk);
+            let parsed = std::mem::replace(&mut cur.status[i], Parsed::Row(0.0));
+            let row = &cur.values[i * width..(i + 1) * width];
+            check.row(cur.lines[i], parsed, row, sink)?;
         }
         if let Some(e) = cur.err.take() {
             return Err(e);
@@ -861,11 +795,84 @@ fn parse<R: Read>(
         std::mem::swap(&mut cur, &mut next);
         next.len = 0;
     }
-    if rows == 0 {
-        return Err(DataError {
-            loc: Location::file(file),
-            kind: Box::new(DataErrorKind::HeaderOnly),
-        });
+    check.finish()
+}
+
+/// The checks of a row in sequence (the field count, the time and its order, then the cells),
+/// and the hand-over of the good ones: shared by the CSV reader and [`Trajectory::from_columns`]
+/// so that both say the same about the same row.
+struct RowCheck<'a> {
+    file: &'a str,
+    cols: &'a Columns,
+    layout: RowLayout,
+    rows: usize,
+    prev: f64,
+}
+
+impl<'a> RowCheck<'a> {
+    fn new(file: &'a str, cols: &'a Columns, layout: RowLayout) -> Self {
+        RowCheck {
+            file,
+            cols,
+            layout,
+            rows: 0,
+            prev: f64::NEG_INFINITY,
+        }
     }
-    Ok((layout, rows))
+
+    /// Row `parsed` (its cells in `values`, canonical order) read from `line`: handed to `sink`,
+    /// or the first thing wrong with it.
+    fn row(
+        &mut self,
+        line: usize,
+        parsed: Parsed,
+        values: &[f64],
+        sink: &mut dyn FnMut(&RowLayout, &[f64]) -> std::io::Result<()>,
+    ) -> Result<(), DataError> {
+        let (file, cols) = (self.file, self.cols);
+        let at = |col: Option<usize>, kind| DataError {
+            loc: Location {
+                file: file.to_string(),
+                line: Some(line),
+                field: col.map(|c| cols.names[c].clone()),
+            },
+            kind: Box::new(kind),
+        };
+        let (tk, bad) = match parsed {
+            Parsed::FieldCount(found) => {
+                let expected = cols.names.len();
+                return Err(at(None, DataErrorKind::FieldCount { found, expected }));
+            }
+            Parsed::BadTime(kind) => return Err(at(Some(cols.t), kind)),
+            Parsed::Row(tk) => (tk, None),
+            Parsed::BadCell { t, col, kind } => (t, Some((col, kind))),
+        };
+        if self.rows > 0 && tk <= self.prev {
+            let (previous, current) = (self.prev, tk);
+            return Err(at(
+                Some(cols.t),
+                DataErrorKind::TimeNotIncreasing { previous, current },
+            ));
+        }
+        if let Some((col, kind)) = bad {
+            return Err(at(Some(col), kind));
+        }
+        sink(&self.layout, values).map_err(|e| DataError {
+            loc: Location::file(file),
+            kind: Box::new(DataErrorKind::TempFile(e)),
+        })?;
+        (self.rows, self.prev) = (self.rows + 1, tk);
+        Ok(())
+    }
+
+    /// The layout and the number of rows; an error when there were none.
+    fn finish(self) -> Result<(RowLayout, usize), DataError> {
+        if self.rows == 0 {
+            return Err(DataError {
+                loc: Location::file(self.file),
+                kind: Box::new(DataErrorKind::HeaderOnly),
+            });
+        }
+        Ok((self.layout, self.rows))
+    }
 }

@@ -7,8 +7,10 @@
 //! streams a data file for identification, spilling a long one to disk; [`bag`] reads ROS 2
 //! bags into one); [`io`]
 //! writes outputs atomically; [`pack`] runs every kernel on four samples at once (SIMD across
-//! samples). The `dynid` command line is its own crate (`cli/`), a client of this one.
+//! samples). [`app`] is the layer the front ends call: the `dynid` command line (its own crate,
+//! `cli/`) and the Python bindings (`python/`) build its requests and present its results.
 
+pub mod app;
 pub mod arms;
 pub mod bag;
 pub mod bench;

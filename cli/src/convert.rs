@@ -1,18 +1,19 @@
 //! `dynid convert BAG.mcap (--arm A | --joints a,b,c) [--topic T] [--torque-scale k,..] [--out F]`:
 //! a ROS 2 bag's joint states as the CSV `identify` and `torque` read (`t, q.., [dq..], [tau..]`).
 //!
-//! Also the one place that opens a data file for the other commands ([`open_log`]): a `.mcap`
-//! bag through [`dynid::bag`] with the options of [`BagArgs`], anything else as CSV.
+//! Also the flags of how a data file is read ([`BagArgs`]), shared by `convert`, `identify` and
+//! `torque`; the reading itself is [`dynid::app::source`]'s.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use anyhow::Result;
 
-use crate::{write_output, InputError};
-use dynid::arms::{resolve, ArmSource};
-use dynid::bag::{self, BagError, BagOptions};
+use crate::write_output;
+use dynid::app::convert::read_bag;
+use dynid::app::source::{ListArg, ReadArgs};
+use dynid::app::Front;
+use dynid::arms::resolve;
 use dynid::data::{header, write_header, write_row};
-use dynid::log::Log;
 
 /// How a ROS 2 bag (`.mcap`) is read; shared by `convert`, `identify` and `torque`.
 #[derive(Debug, Clone, Default, clap::Args)]
@@ -31,68 +32,14 @@ pub struct BagArgs {
 }
 
 impl BagArgs {
-    /// The options for an arm of `dof` joints; `file` names the bag in errors.
-    fn options(&self, dof: usize, need_effort: bool, file: &Path) -> Result<BagOptions> {
-        let torque_scale = self
-            .torque_scale
-            .as_deref()
-            .map(|s| bag::parse_torque_scale(s, dof))
-            .transpose()
-            .map_err(|kind| BagError {
-                file: file.display().to_string(),
-                topic: None,
-                message: None,
-                kind: Box::new(kind),
-            })?;
-        Ok(BagOptions {
+    /// The flags as the application layer's reading options.
+    pub fn read_args(&self) -> ReadArgs {
+        ReadArgs {
             topic: self.topic.clone(),
-            joints: self.joints.as_deref().map(bag::parse_joints),
-            torque_scale,
-            need_effort,
-            spill_rows: None,
-        })
-    }
-
-    /// An error if a bag option was given for `path`, which is not a bag.
-    pub fn reject_for_csv(&self, path: &Path) -> Result<(), InputError> {
-        if self.topic.is_some() || self.joints.is_some() {
-            return Err(InputError(format!(
-                "{}: --topic and --joints are for ROS 2 bags (.mcap), and this is not one — drop them for a CSV",
-                path.display()
-            )));
+            joints: self.joints.clone().map(ListArg::Text),
+            torque_scale: self.torque_scale.clone().map(ListArg::Text),
         }
-        Ok(())
     }
-}
-
-/// Opens a data file of `arm`: a ROS 2 bag (`.mcap`, its notes on stderr) or a CSV.
-/// `need_effort`: the bag must carry the joint torque (identification).
-pub fn open_log(
-    path: &Path,
-    arm: &ArmSource,
-    bag_args: &BagArgs,
-    need_effort: bool,
-) -> Result<Log> {
-    let dof = arm.dof();
-    if !bag::is_bag(path) {
-        bag_args.reject_for_csv(path)?;
-        let log = Log::open(path, Some(dof))?;
-        return Ok(match &bag_args.torque_scale {
-            Some(s) => {
-                let k = bag::parse_torque_scale(s, dof)
-                    .map_err(|e| InputError(format!("--torque-scale: {e}")))?;
-                log.scale_torque(&k)?
-            }
-            None => log,
-        });
-    }
-    let names = arm.dh_table().ok().and_then(|t| t.joint_names());
-    let opts = bag_args.options(dof, need_effort, path)?;
-    let read = bag::read(path, dof, names, &opts)?;
-    for n in &read.notes {
-        eprintln!("{n}");
-    }
-    Ok(read.log)
 }
 
 #[derive(Debug, clap::Args)]
@@ -111,25 +58,18 @@ pub struct Args {
 }
 
 pub fn run(args: &Args) -> Result<()> {
-    let (dof, names) = match (&args.arm, &args.bag_args.joints) {
-        (Some(a), _) => {
-            let arm = resolve(a)?;
-            (arm.dof(), arm.dh_table().ok().and_then(|t| t.joint_names()))
-        }
-        (None, Some(j)) => (bag::parse_joints(j).len(), None),
-        (None, None) => return Err(InputError(
-            "convert: which joints? — pass --arm (a D-H table with joint names) or --joints a,b,c"
-                .into(),
-        )
-        .into()),
-    };
-    let opts = args.bag_args.options(dof, false, &args.bag)?;
-    let read = bag::read(&args.bag, dof, names, &opts)?;
+    let arm = args.arm.as_deref().map(resolve).transpose()?;
+    let read = read_bag(
+        &args.bag,
+        arm.as_ref(),
+        &args.bag_args.read_args(),
+        Front::Cli,
+    )?;
     for n in &read.notes {
         eprintln!("{n}");
     }
     let log = read.log;
-    let h = header(dof, log.layout.dq, false, log.layout.tau);
+    let h = header(log.dof(), log.layout.dq, false, log.layout.tau);
     write_output(args.out.as_deref(), |w| {
         writeln!(
             w,

@@ -7,16 +7,17 @@
 //! `DIR/leave_one_out.md` / `.json`. Everything is computed before anything is written.
 
 use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 
 use crate::InputError;
+use dynid::app::identify::{write_leave_one_out, IdentifyArgs};
+use dynid::app::options::CutoffArg;
+use dynid::app::source::DataSource;
+use dynid::app::Front;
 use dynid::arms::resolve;
-use dynid::derivative::Method;
-use dynid::effects::parse_list;
-use dynid::identify::{self, Config, Outcome};
-use dynid::log::Log;
+use dynid::identify::{self, Outcome};
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -80,24 +81,30 @@ pub enum DerivativeArg {
 }
 
 impl DerivativeArg {
-    pub fn method(self) -> Method {
+    /// The estimator's name in the application layer's requests.
+    pub fn name(self) -> &'static str {
         match self {
-            DerivativeArg::Butterworth => Method::Butterworth,
-            DerivativeArg::Savgol => Method::SavitzkyGolay,
+            DerivativeArg::Butterworth => "butterworth",
+            DerivativeArg::Savgol => "savgol",
         }
     }
 }
 
-/// `--cutoff`: a positive number of Hz, or `auto` (`None`).
-pub fn parse_cutoff(s: &str) -> Result<Option<f64>, InputError> {
-    match s.trim() {
-        "auto" => Ok(None),
-        s => match s.parse::<f64>() {
-            Ok(f) if f.is_finite() && f > 0.0 => Ok(Some(f)),
-            _ => Err(InputError(format!(
-                "--cutoff: `{s}` is not a positive number of Hz or `auto`"
-            ))),
-        },
+impl Args {
+    /// The flags as the application layer's options.
+    fn app_args(&self) -> IdentifyArgs {
+        IdentifyArgs {
+            effects: self.effects.clone(),
+            cutoff: CutoffArg::Text(self.cutoff.clone()),
+            smoothing: self.smoothing.clone(),
+            derivative: self.derivative.name().into(),
+            file_velocity: !self.ignore_file_velocity,
+            physical: self.physical == "on",
+            prior: self.prior.clone(),
+            strict: self.strict,
+            leave_one_out: self.leave_one_out,
+            read: self.bag.read_args(),
+        }
     }
 }
 
@@ -147,141 +154,52 @@ fn command_line(args: &Args) -> String {
     c
 }
 
-/// Prints the outcomes' identifiability warnings; with `--strict` they are an error.
-fn check_warnings(args: &Args, outs: &[&Outcome]) -> Result<()> {
-    let mut all: Vec<&String> = outs.iter().flat_map(|o| &o.warnings).collect();
-    all.dedup();
-    if args.strict && !all.is_empty() {
-        let list: Vec<String> = all.iter().map(|w| format!("  - {w}")).collect();
-        return Err(InputError(format!(
-            "--strict: the data cannot identify everything:\n{}",
-            list.join("\n")
-        ))
-        .into());
-    }
-    for w in all {
-        eprintln!("warning: {w}");
-    }
-    Ok(())
-}
-
 pub fn run(args: &Args) -> Result<()> {
     let arm = resolve(&args.arm)?;
-    let dof = arm.dof();
-    let effects = parse_list(&args.effects, dof).map_err(InputError)?;
-    let cutoff_hz = parse_cutoff(&args.cutoff)?;
-    let smoothing = match args.smoothing.trim() {
-        "auto" => None,
-        s => Some(
-            identify::Smoothing::parse(s).map_err(|e| InputError(format!("--smoothing: {e}")))?,
-        ),
-    };
+    let request =
+        args.app_args()
+            .request(&arm, args.data.len(), args.validate.is_some(), Front::Cli)?;
     // On a terminal: the stage and the scan's cut-offs (or the folds) on stderr; nothing elsewhere.
     let (bar, progress) = crate::bar::Bar::start();
-    let cfg = Config {
-        progress,
-        smoothing,
-        derivative: dynid::derivative::Options {
-            method: args.derivative.method(),
-            cutoff_hz,
-        },
-        file_velocity: !args.ignore_file_velocity,
-        effects,
-        physical: physical_options(args, dof)?,
-        ..Config::default()
-    };
-    let load = |p: &Path| crate::convert::open_log(p, &arm, &args.bag, true);
-    let train: Vec<Log> = args
-        .data
-        .iter()
-        .map(|p| load(p))
-        .collect::<Result<_, _>>()?;
+    let request = request.with_progress(progress);
+    let train: Vec<DataSource> = args.data.iter().cloned().map(DataSource::Path).collect();
     let command = command_line(args);
-    let bad = |e: identify::IdentifyError| -> anyhow::Error {
-        match e {
-            identify::IdentifyError::Data(d) => d.into(),
-            other => InputError(other.to_string()).into(),
-        }
-    };
     if args.leave_one_out {
-        if train.len() < 2 || args.validate.is_some() {
-            return Err(InputError(
-                "--leave-one-out needs at least two --data files and no --validate".into(),
-            )
-            .into());
-        }
-        let outs = identify::leave_one_out(&arm, train, &cfg).map_err(bad);
+        let outs = request.leave_one_out(&arm, &train);
         bar.finish_and_clear();
-        let outs = outs?;
-        check_warnings(args, &outs.iter().collect::<Vec<_>>())?;
-        let table = arm.dh_table().ok();
-        let summary =
-            dynid::report::leave_one_out::write(&args.out, &outs, &command, table.as_ref())
-                .context("writing the leave-one-out report")?;
+        let folds = outs?;
+        print_notes(&folds.notes, &folds.warnings);
+        let summary = write_leave_one_out(&args.out, &folds.outs, &command, &arm)?;
         print!("{summary}");
         return Ok(());
     }
-    let val = args.validate.as_deref().map(load).transpose()?;
-    let outcome = identify::run(&arm, train, val, &cfg).map_err(bad);
+    let val = args.validate.clone().map(DataSource::Path);
+    let identified = request.run(&arm, &train, val.as_ref());
     bar.finish_and_clear();
-    let outcome = outcome?;
-    check_warnings(args, &[&outcome])?;
-    let table = arm.dh_table().ok();
-    let files = dynid::report::write(&args.out, &outcome, &command, table.as_ref())
-        .context("writing the report")?;
-    write_roundtrip(args, &outcome)?;
-    print_summary(&outcome);
-    eprintln!("wrote {} files to {}", files.len(), args.out.display());
+    let identified = identified?;
+    print_notes(&identified.notes, &identified.warnings);
+    let urdf = dynid::arms::urdf_source(&args.arm).map_err(InputError)?;
+    let written = identified.write(&args.out, &command, &arm, urdf.as_ref())?;
+    for n in &written.notes {
+        eprintln!("note: {n}");
+    }
+    print_summary(&identified.outcome);
+    eprintln!(
+        "wrote {} files to {}",
+        written.files.len(),
+        args.out.display()
+    );
     Ok(())
 }
 
-/// An arm from a URDF: `identified.urdf` is that URDF with the identified inertials.
-fn write_roundtrip(args: &Args, outcome: &Outcome) -> Result<()> {
-    let Some(source) = dynid::arms::urdf_source(&args.arm).map_err(InputError)? else {
-        return Ok(());
-    };
-    let Some(rt) = dynid::report::physical::urdf_roundtrip(outcome, &source) else {
-        return Ok(());
-    };
-    let rt = rt.context("writing identified.urdf into the arm's URDF")?;
-    for n in &rt.notes {
-        eprintln!("note: identified.urdf: {n}");
+/// The readers' notes and the warnings (what the data cannot identify), on stderr.
+fn print_notes(notes: &[String], warnings: &[String]) {
+    for n in notes {
+        eprintln!("{n}");
     }
-    let path = args.out.join("identified.urdf");
-    dynid::io::atomic_write(&path, |w| w.write_all(rt.urdf.as_bytes()))
-        .with_context(|| format!("writing {}", path.display()))?;
-    Ok(())
-}
-
-/// `--physical` and `--prior`: the prior must be a physically consistent params file of this arm.
-fn physical_options(args: &Args, dof: usize) -> Result<identify::physical::PhysicalOptions> {
-    let prior = match &args.prior {
-        Some(path) => {
-            let p = dynid::params::InertialParams::from_path(
-                path,
-                dof,
-                &dynid::params::ParamsOptions::default(),
-            )
-            .map_err(|e| {
-                InputError(format!(
-                    "--prior: {e} — the prior must be a physically consistent parameter file of this arm"
-                ))
-            })?;
-            Some(p.full_vector())
-        }
-        None => None,
-    };
-    if prior.is_some() && args.physical == "off" {
-        return Err(InputError(
-            "--prior needs the consistent estimate: drop `--physical off`".into(),
-        )
-        .into());
+    for w in warnings {
+        eprintln!("warning: {w}");
     }
-    Ok(identify::physical::PhysicalOptions {
-        enabled: args.physical == "on",
-        prior,
-        prior_source: args.prior.as_ref().map(|p| format!("`{}`", p.display())),
-    })
 }
 
 fn print_summary(o: &Outcome) {

@@ -106,6 +106,8 @@ pub struct InputError(pub String);
 pub fn exit_code(err: &anyhow::Error) -> u8 {
     let bad_input = err.chain().any(|e| {
         e.is::<InputError>()
+            || e.downcast_ref::<dynid::app::AppError>()
+                .is_some_and(dynid::app::AppError::is_bad_input)
             || e.is::<dynid::dh::DhError>()
             || e.is::<dynid::params::ParamsError>()
             || e.is::<dynid::data::DataError>()

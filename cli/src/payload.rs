@@ -5,13 +5,14 @@
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 
 use crate::InputError;
+use dynid::app::options::CutoffArg;
+use dynid::app::payload::PayloadArgs;
+use dynid::app::source::{DataSource, ListArg};
+use dynid::app::Front;
 use dynid::arms::resolve;
-use dynid::data::Trajectory;
-use dynid::params::{InertialParams, ParamsOptions};
-use dynid::payload::{identify_payload_with, output, PayloadError, PayloadOptions};
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -69,46 +70,20 @@ fn command(args: &Args) -> String {
 
 pub fn run(args: &Args) -> Result<()> {
     let arm = resolve(&args.arm)?;
-    let dof = arm.dof();
-    let table = arm.dh_table().context("the arm's D-H table")?;
-    let params = InertialParams::from_path(&args.params, dof, &ParamsOptions::default())?;
-    let torque_scale = match &args.torque_scale {
-        Some(s) => Some(
-            dynid::bag::parse_torque_scale(s, dof)
-                .map_err(|e| InputError(format!("--torque-scale: {e}")))?,
-        ),
-        None => None,
-    };
-    let read = |paths: &[PathBuf]| -> Result<Vec<Trajectory>> {
-        paths
-            .iter()
-            .map(|p| Ok(Trajectory::from_path(p, Some(dof))?))
-            .collect()
-    };
-    let opts = PayloadOptions {
+    let request = PayloadArgs {
+        params: args.params.clone(),
         mass: args.mass,
-        torque_scale,
-        derivative: dynid::derivative::Options {
-            method: args.derivative.method(),
-            cutoff_hz: crate::identify::parse_cutoff(&args.cutoff)?,
-        },
-    };
+        torque_scale: args.torque_scale.clone().map(ListArg::Text),
+        cutoff: CutoffArg::Text(args.cutoff.clone()),
+        derivative: args.derivative.name().into(),
+    }
+    .request(&arm, Front::Cli)?;
+    let paths =
+        |p: &[PathBuf]| -> Vec<DataSource> { p.iter().cloned().map(DataSource::Path).collect() };
     let progress = crate::bar::Bars::progress();
-    let est = identify_payload_with(
-        &table,
-        &params,
-        read(&args.data)?,
-        read(&args.unloaded)?,
-        &opts,
-        &progress,
-    )
-    .map_err(|e| match e {
-        PayloadError::Numerical(m) => anyhow::anyhow!(m),
-        e => InputError(e.to_string()).into(),
-    })?;
+    let est = request.run(&paths(&args.data), &paths(&args.unloaded), &progress)?;
     let source = dynid::arms::urdf_source(&args.arm).map_err(InputError)?;
-    let files = output::write_all(&args.out, &est, &params, source.as_ref(), &command(args))
-        .map_err(anyhow::Error::msg)?;
+    let files = request.write(&args.out, &est, source.as_ref(), &command(args))?;
     for w in &est.warnings {
         eprintln!("warning: {w}");
     }

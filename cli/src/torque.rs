@@ -15,6 +15,9 @@ use std::path::PathBuf;
 use anyhow::Result;
 
 use crate::{write_output, InputError};
+use dynid::app::options::{self, CutoffArg};
+use dynid::app::source::DataSource;
+use dynid::app::Front;
 use dynid::arms::{resolve, ArmSource};
 use dynid::data::{write_header, write_row, Trajectory};
 use dynid::params::{InertialParams, ParamsOptions};
@@ -59,11 +62,16 @@ pub fn run(args: &Args) -> Result<()> {
     for w in &params.warnings {
         eprintln!("warning: {w}");
     }
+    let reader = args.bag.read_args().for_arm(&arm, Front::Cli, false)?;
+    let src = DataSource::Path(args.data.clone());
     let mut traj = if dynid::bag::is_bag(&args.data) {
-        let log = crate::convert::open_log(&args.data, &arm, &args.bag, false)?;
-        log.read(0, log.len())
+        let opened = reader.log(&src)?;
+        for n in &opened.notes {
+            eprintln!("{n}");
+        }
+        opened.log.read(0, opened.log.len())
     } else {
-        args.bag.reject_for_csv(&args.data)?;
+        reader.reject_bag_options(&src)?;
         Trajectory::from_path(&args.data, Some(dof))?
     };
     if traj.dq.is_none() || traj.ddq.is_none() {
@@ -89,11 +97,8 @@ pub fn run(args: &Args) -> Result<()> {
 
 /// Replaces `q` by its filtered estimate and fills `dq`, `ddq` at the log's sample times.
 fn estimate_states(traj: &mut Trajectory, args: &Args) -> Result<()> {
-    let cutoff_hz = crate::identify::parse_cutoff(&args.cutoff)?;
-    let opts = dynid::derivative::Options {
-        method: args.derivative.method(),
-        cutoff_hz,
-    };
+    let cutoff = CutoffArg::Text(args.cutoff.clone());
+    let opts = options::derivative(args.derivative.name(), &cutoff, Front::Cli)?;
     let n = traj.dof;
     let cols = |v: &[f64]| -> Vec<Vec<f64>> {
         (0..n)

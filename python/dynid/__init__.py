@@ -14,7 +14,6 @@ compiled in). Errors in the input are ``DynidError`` (a ``ValueError``) with the
 
 from __future__ import annotations
 
-import json
 import os
 import warnings
 from collections.abc import Mapping, Sequence
@@ -203,21 +202,15 @@ def identify(
     the report there (``report.md``, ``report.json``, plots, ``identified.params.toml``, ...).
     The other keywords are the CLI's flags of the same names (``physical=False`` = ``--physical off``).
 
-    Arrays go through the same reader as files, so every check of the CLI applies; a row is named by its
-    line in the equivalent CSV (line 1 the header, row ``i`` line ``i + 2``). The GIL is released while
-    it runs. Raises ``DynidError`` with the CLI's message.
+    Arrays reach the library as numbers (no text in between) and get every check of the CLI's reader; a row
+    is named by its line in the equivalent CSV (line 1 the header, row ``i`` line ``i + 2``). The GIL is
+    released while it runs. Raises ``DynidError`` with the CLI's message.
     """
     a = _as_arm(arm)
     items = data if isinstance(data, list) else [data]
     train = [_data_arg(x, f"data[{k}]" if isinstance(data, list) else "data", a.dof) for k, x in enumerate(items)]
     val = None if validate is None else _data_arg(validate, "validate", a.dof)
     effects_text = effects if isinstance(effects, str) else ",".join(effects)
-    if isinstance(cutoff, str):
-        if cutoff.strip() != "auto":
-            raise ValueError(f'cutoff: expected a number of Hz or "auto", got {cutoff!r}')
-        cutoff_hz = None
-    else:
-        cutoff_hz = float(cutoff)
 
     def shown(x: Any) -> str:
         return repr(x) if isinstance(x, str) else (x[0] if isinstance(x, tuple) else repr(x))
@@ -228,12 +221,12 @@ def identify(
         + f", effects={effects_text!r}, cutoff={cutoff!r}, smoothing={smoothing!r}"
         + (f", out={os.fspath(out)!r})" if out is not None else ")")
     )
-    report_json, files, warns = _native_identify(
+    report, files, warns = _native_identify(
         a,
         train,
         val,
         effects_text,
-        cutoff_hz,
+        cutoff,
         smoothing,
         derivative,
         file_velocity,
@@ -249,7 +242,7 @@ def identify(
     for w in warns:
         warnings.warn(w, stacklevel=2)
     return IdentifyResult(
-        report=json.loads(report_json),
+        report=report,
         report_dir=None if out is None else Path(out),
         files=list(files),
         warnings=list(warns),
@@ -326,12 +319,6 @@ def payload(
     runs = [_data_arg(x, f"data[{k}]", a.dof) for k, x in enumerate(items)]
     twins_in = [] if unloaded is None else (unloaded if isinstance(unloaded, list) else [unloaded])
     twins = [_data_arg(x, f"unloaded[{k}]", a.dof) for k, x in enumerate(twins_in)]
-    if isinstance(cutoff, str):
-        if cutoff.strip() != "auto":
-            raise ValueError(f'cutoff: expected a number of Hz or "auto", got {cutoff!r}')
-        cutoff_hz = None
-    else:
-        cutoff_hz = float(cutoff)
     command = f"dynid.payload({a.name!r}, params={os.fspath(params)!r}, mass={mass!r})"
     scale = None if torque_scale is None else [float(v) for v in torque_scale]
     return _native_payload(
@@ -341,7 +328,7 @@ def payload(
         twins,
         mass,
         scale,
-        cutoff_hz,
+        cutoff,
         derivative,
         None if out is None else os.fspath(out),
         command,

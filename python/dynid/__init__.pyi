@@ -216,6 +216,7 @@ class PayloadResult:
     warnings: list[str]
     files: list[str]
     json: str
+    def to_dict(self) -> dict[str, Any]: ...
 
 def payload(
     arm: Arm | str | os.PathLike[str],

@@ -1,43 +1,26 @@
-//! `dynid.payload`: the CLI's `payload` on files or arrays, returning a typed result.
+//! `dynid.payload`: the application layer's `payload` on files or arrays, returning the
+//! estimate as a typed object whose getters read the Rust values (numpy arrays for vectors).
 
 use std::path::PathBuf;
 
-use dynid::data::Trajectory;
-use dynid::derivative::{Method, Options as DerivativeOptions};
-use dynid::params::{InertialParams, ParamsOptions};
-use dynid::payload::{identify_payload, output, PayloadEstimate, PayloadOptions};
+use dynid::app::payload::PayloadArgs;
+use dynid::app::source::ListArg;
+use dynid::app::Front;
+use dynid::payload::PayloadEstimate;
+use dynid::progress::Progress;
 use numpy::ndarray::Array1;
 use numpy::prelude::*;
 use numpy::PyArray1;
 use pyo3::prelude::*;
 
-use crate::ident::{CsvText, Source};
-use crate::{Arm, DynidError};
+use crate::source::{err, sources, urdf, Cutoff, DataArg};
+use crate::Arm;
 
 /// What ``dynid.payload`` returns: the payload in the last link's frame, each value with its σ.
 #[pyclass(frozen, module = "dynid")]
 pub struct PayloadResult {
-    /// kg.
-    #[pyo3(get)]
-    pub mass: f64,
-    #[pyo3(get)]
-    pub sigma_mass: f64,
-    pub com: [f64; 3],
-    pub sigma_com: [f64; 3],
-    pub inertia: [f64; 6],
-    pub sigma_inertia: [f64; 6],
-    pub params: [f64; 10],
-    pub torque_scale: Option<Vec<f64>>,
-    pub torque_scale_sigma: Option<Vec<f64>>,
-    #[pyo3(get)]
-    pub uncalibrated_joints: Vec<usize>,
-    #[pyo3(get)]
-    pub warnings: Vec<String>,
-    #[pyo3(get)]
-    pub files: Vec<String>,
-    /// payload.json's text.
-    #[pyo3(get)]
-    pub json: String,
+    est: PayloadEstimate,
+    files: Vec<String>,
 }
 
 fn arr<'py>(py: Python<'py>, v: &[f64]) -> Bound<'py, PyArray1<f64>> {
@@ -46,136 +29,122 @@ fn arr<'py>(py: Python<'py>, v: &[f64]) -> Bound<'py, PyArray1<f64>> {
 
 #[pymethods]
 impl PayloadResult {
+    /// kg.
+    #[getter]
+    fn mass(&self) -> f64 {
+        self.est.mass
+    }
+    #[getter]
+    fn sigma_mass(&self) -> f64 {
+        self.est.sigma.mass
+    }
     /// Centre of mass (m), ``(3,)``.
     #[getter]
     fn com<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
-        arr(py, &self.com)
+        arr(py, &self.est.com)
     }
     #[getter]
     fn sigma_com<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
-        arr(py, &self.sigma_com)
+        arr(py, &self.est.sigma.com)
     }
     /// Inertia about the centre of mass ``[xx, xy, xz, yy, yz, zz]`` (kg·m²), ``(6,)``.
     #[getter]
     fn inertia<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
-        arr(py, &self.inertia)
+        arr(py, &self.est.inertia)
     }
     #[getter]
     fn sigma_inertia<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
-        arr(py, &self.sigma_inertia)
+        arr(py, &self.est.sigma.inertia)
     }
     /// ``[XX, XY, XZ, YY, YZ, ZZ, MX, MY, MZ, M]`` about the last link's origin, ``(10,)``.
     #[getter]
     fn params<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
-        arr(py, &self.params)
+        arr(py, &self.est.params)
     }
     /// With ``mass``: the factor per joint the data's torque must be multiplied by, ``(n,)``.
     #[getter]
     fn torque_scale<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyArray1<f64>>> {
-        self.torque_scale.as_ref().map(|v| arr(py, v))
+        self.est.torque_scale.as_ref().map(|v| arr(py, v))
     }
     #[getter]
     fn torque_scale_sigma<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyArray1<f64>>> {
-        self.torque_scale_sigma.as_ref().map(|v| arr(py, v))
+        self.est.torque_scale_sigma.as_ref().map(|v| arr(py, v))
+    }
+    /// Joints (1-based) the runs cannot calibrate.
+    #[getter]
+    fn uncalibrated_joints(&self) -> Vec<usize> {
+        self.est.uncalibrated_joints.clone()
+    }
+    /// What the runs cannot estimate well.
+    #[getter]
+    fn warnings(&self) -> Vec<String> {
+        self.est.warnings.clone()
+    }
+    /// The files written (with ``out=``).
+    #[getter]
+    fn files(&self) -> Vec<String> {
+        self.files.clone()
+    }
+    /// The estimate as ``payload.json`` holds it: a dict built from the Rust values.
+    fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let v = serde_json::to_value(&self.est)
+            .map_err(|e| pyo3::exceptions::PyValueError::new_err(e.to_string()))?;
+        crate::value::to_py(py, &v)
+    }
+    /// ``payload.json``'s text (made when asked for: the result itself holds numbers).
+    #[getter]
+    fn json(&self) -> PyResult<String> {
+        serde_json::to_string_pretty(&self.est)
+            .map_err(|e| pyo3::exceptions::PyValueError::new_err(e.to_string()))
     }
     fn __repr__(&self) -> String {
+        let (m, c) = (self.est.mass, self.est.com);
         format!(
-            "PayloadResult(mass={:.6}, com=[{:.6}, {:.6}, {:.6}])",
-            self.mass, self.com[0], self.com[1], self.com[2]
+            "PayloadResult(mass={m:.6}, com=[{:.6}, {:.6}, {:.6}])",
+            c[0], c[1], c[2]
         )
     }
 }
 
-fn read(src: &Source, dof: usize) -> Result<Trajectory, String> {
-    match src {
-        Source::Path(p) => Trajectory::from_path(p, Some(dof)).map_err(|e| e.to_string()),
-        Source::Table {
-            label,
-            names,
-            values,
-        } => Trajectory::from_reader(CsvText::new(names, values), label, Some(dof))
-            .map_err(|e| e.to_string()),
-    }
-}
-
-/// Options of a run (the CLI's flags).
-pub struct Options {
-    pub mass: Option<f64>,
-    pub torque_scale: Option<Vec<f64>>,
-    pub cutoff: Option<f64>,
-    pub derivative: String,
-    pub out: Option<PathBuf>,
-    pub command: String,
-}
-
-pub fn run(
+/// The native part of ``dynid.payload``: a ``PayloadResult``.
+#[pyfunction]
+#[pyo3(signature = (arm, params, data, unloaded, mass, torque_scale, cutoff, derivative, out, command))]
+#[allow(clippy::too_many_arguments)]
+pub fn _payload(
+    py: Python<'_>,
     arm: &Arm,
-    params: &std::path::Path,
-    data: &[Source],
-    unloaded: &[Source],
-    o: &Options,
-) -> Result<PayloadResult, String> {
+    params: PathBuf,
+    data: Vec<DataArg<'_>>,
+    unloaded: Vec<DataArg<'_>>,
+    mass: Option<f64>,
+    torque_scale: Option<Vec<f64>>,
+    cutoff: Cutoff,
+    derivative: String,
+    out: Option<PathBuf>,
+    command: String,
+) -> PyResult<PayloadResult> {
+    let args = PayloadArgs {
+        params,
+        mass,
+        torque_scale: torque_scale.map(ListArg::Items),
+        cutoff: cutoff.arg(),
+        derivative,
+    };
+    let (loaded, twins) = (sources(&data)?, sources(&unloaded)?);
     let src = arm.source();
-    let table = src.dh_table().map_err(|e| e.to_string())?;
-    let dof = table.dof();
-    let p = InertialParams::from_path(params, dof, &ParamsOptions::default())
-        .map_err(|e| e.to_string())?;
-    let method = match o.derivative.as_str() {
-        "butterworth" => Method::Butterworth,
-        "savgol" => Method::SavitzkyGolay,
-        d => {
-            return Err(format!(
-                "derivative: {d:?} — expected \"butterworth\" or \"savgol\""
-            ))
-        }
-    };
-    let opts = PayloadOptions {
-        mass: o.mass,
-        torque_scale: o.torque_scale.clone(),
-        derivative: DerivativeOptions {
-            method,
-            cutoff_hz: o.cutoff,
-        },
-    };
-    let loaded = data
-        .iter()
-        .map(|s| read(s, dof))
-        .collect::<Result<Vec<_>, _>>()?;
-    let twins = unloaded
-        .iter()
-        .map(|s| read(s, dof))
-        .collect::<Result<Vec<_>, _>>()?;
-    let est: PayloadEstimate =
-        identify_payload(&table, &p, loaded, twins, &opts).map_err(|e| e.to_string())?;
-    let mut files = Vec::new();
-    if let Some(dir) = &o.out {
-        let urdf = arm
-            .urdf_origin()
-            .and_then(|path| dynid::arms::urdf_source(&path).ok().flatten());
-        files = output::write_all(dir, &est, &p, urdf.as_ref(), &o.command)?
-            .into_iter()
-            .map(|f| f.display().to_string())
-            .collect();
-    }
-    let json = serde_json::to_string_pretty(&est).map_err(|e| e.to_string())?;
-    Ok(PayloadResult {
-        mass: est.mass,
-        sigma_mass: est.sigma.mass,
-        com: est.com,
-        sigma_com: est.sigma.com,
-        inertia: est.inertia,
-        sigma_inertia: est.sigma.inertia,
-        params: est.params,
-        torque_scale: est.torque_scale,
-        torque_scale_sigma: est.torque_scale_sigma,
-        uncalibrated_joints: est.uncalibrated_joints,
-        warnings: est.warnings,
-        files,
-        json,
+    let urdf = urdf(arm);
+    py.detach(|| {
+        let request = args.request(&src, Front::Python)?;
+        let est = request.run(&loaded, &twins, &Progress::silent())?;
+        let files = match &out {
+            Some(dir) => request
+                .write(dir, &est, urdf.as_ref(), &command)?
+                .iter()
+                .map(|f| f.display().to_string())
+                .collect(),
+            None => Vec::new(),
+        };
+        Ok(PayloadResult { est, files })
     })
-}
-
-/// Maps a library error to ``DynidError``.
-pub fn err(e: String) -> PyErr {
-    DynidError::new_err(e)
+    .map_err(err)
 }

@@ -106,3 +106,64 @@ def test_what_the_data_cannot_identify_is_in_the_result():
     assert r.fixed[0] == "ZZR1" and len(r.fixed) == 2, r.fixed
     assert all(p["value"] == 0.0 for p in r.parameters if p["name"] in r.fixed)
     assert isinstance(r.undetermined, list)
+
+
+def typed(a, b, path="report"):
+    """a == b with the same Python types throughout (an int stays an int, a float a float), NaN equal to NaN."""
+    assert type(a) is type(b), f"{path}: {type(a).__name__} vs {type(b).__name__}"
+    if isinstance(a, dict):
+        assert a.keys() == b.keys(), f"{path}: keys differ"
+        for k in a:
+            typed(a[k], b[k], f"{path}.{k}")
+    elif isinstance(a, list):
+        assert len(a) == len(b), f"{path}: lengths differ"
+        for i, (x, y) in enumerate(zip(a, b)):
+            typed(x, y, f"{path}[{i}]")
+    elif isinstance(a, float) and math.isnan(a):
+        assert math.isnan(b), f"{path}: {a} vs {b}"
+    else:
+        assert a == b, f"{path}: {a!r} vs {b!r}"
+
+
+def test_the_report_object_is_what_json_loads_makes_of_report_json(tmp_path):
+    """The report reaches Python as objects built from Rust values, no text in between: it must still be exactly
+    what `json.loads` makes of the report.json the same call writes, types included."""
+    data = pd.read_csv(SET / "excite_noisy.csv.gz", float_precision="round_trip").iloc[:4000]
+    result = dynid.identify("planar2", data, effects="viscous", cutoff=8.0, out=tmp_path)
+    typed(json.loads((tmp_path / "report.json").read_text()), result.report)
+    assert isinstance(result.report["theta"][0]["value"], float)
+
+
+def test_torque_scale_multiplies_an_arrays_torque():
+    """Oracle: halving the logged torque and asking for torque_scale=[2, 2] is the unscaled run, number for number
+    (both are exact in binary floating point)."""
+    data = pd.read_csv(SET / "excite_noisy.csv.gz", float_precision="round_trip").iloc[:4000]
+    half = data.copy()
+    half[["tau1", "tau2"]] = data[["tau1", "tau2"]] / 2
+    plain = dynid.identify("planar2", data, effects="viscous", cutoff=8.0)
+    scaled = dynid.identify("planar2", half, effects="viscous", cutoff=8.0, torque_scale=[2.0, 2.0])
+    same(plain.report, scaled.report)
+    with pytest.raises(dynid.DynidError, match="torque_scale: 3 factors for an arm with 2 joints"):
+        dynid.identify("planar2", half, torque_scale=[2.0, 2.0, 2.0])
+
+
+def test_bad_arrays_and_options_get_the_cli_checks_with_pythons_names():
+    t = np.arange(0.0, 1.0, 0.01)
+    cols = {"t": t, "q1": np.sin(t), "q2": np.cos(t), "tau1": t, "tau2": t}
+    rows = np.arange(len(t))
+    inf = dict(cols, tau2=np.where(rows >= 51, np.inf, t))  # row 51: line 53 of the CSV it stands for
+    with pytest.raises(dynid.DynidError, match=r"data \(dict\):53: tau2: `inf` is not a finite number"):
+        dynid.identify("planar2", inf)
+    back = dict(cols, t=np.where(rows == 10, 0.05, t))
+    with pytest.raises(dynid.DynidError, match=r"data \(dict\):12: t: t = 0.05 does not increase"):
+        dynid.identify("planar2", back)
+    with pytest.raises(dynid.DynidError, match="cutoff: `-1` is not a positive number of Hz or `auto`"):
+        dynid.identify("planar2", cols, cutoff=-1)
+    with pytest.raises(dynid.DynidError, match="cutoff: `fast` is not a positive number"):
+        dynid.identify("planar2", cols, cutoff="fast")
+    with pytest.raises(dynid.DynidError, match="derivative: `spline` is not an estimator"):
+        dynid.identify("planar2", cols, derivative="spline")
+    with pytest.raises(dynid.DynidError, match=r"data \(dict\): topic and joints are for ROS 2 bags"):
+        dynid.identify("planar2", cols, topic="/joint_states")
+    with pytest.raises(dynid.DynidError, match="data: no training data"):
+        dynid.identify("planar2", [])
