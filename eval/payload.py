@@ -495,9 +495,9 @@ def main(argv: list[str] | None = None) -> int:
         for c in pool.map(run_case, jobs):
             cases.append(c)
             print(progress(c), flush=True)
+            (a.out / "cases.json").write_text(json.dumps(cases, indent=1, default=str))  # so far
     summary = score(cases)
     summary["wall_seconds"] = time.perf_counter() - start
-    (a.out / "cases.json").write_text(json.dumps(cases, indent=1, default=str))
     (a.out / "summary.json").write_text(json.dumps(summary, indent=1))
     md = markdown(summary, a)
     (a.out / "summary.md").write_text(md)
