@@ -167,37 +167,30 @@ def column(effect: str, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray) -> np.nd
     return {"viscous": dq, "coulomb": np.sign(dq), "armature": ddq, "spring": q, "offset": np.ones_like(q)}[effect]
 
 
-def simulate(mujoco, spec: dict, urdf: Path, work: Path, runs: list | None = None) -> tuple[list[Path], list[dict]]:  # noqa: ANN001
-    """Three logs of the case, and the effects with their coefficients (sized on the first run). `runs`: the motions
-    `(t, q, dq, ddq)` to log instead of the case's own three (one log each, `run1.csv`…)."""
+def load_model(mujoco, urdf: Path):  # noqa: ANN001, ANN201
+    """The URDF as MuJoCo models it for the suite: no joint limits, no contacts."""
     model = mujoco.MjModel.from_xml_path(str(urdf))
     model.jnt_limited[:] = 0
     model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
-    data = mujoco.MjData(model)
-    rng = np.random.default_rng(spec["seed"] + 1_000_003)
-    n = model.nv
-    dt_sim = 1.0 / spec["rate"]
-    if runs is None:
-        runs = []
-        for _ in range(3):
-            t = np.arange(0.0, spec["duration"], dt_sim)
-            q, dq, ddq = excitation(rng, spec["kinds"], t, spec["excitation"])
-            runs.append((t, q, dq, ddq))
+    return model
 
-    def rigid(q, dq, ddq):  # noqa: ANN001, ANN202
-        tau = np.zeros_like(q)
-        for k in range(len(q)):
-            data.qpos[:], data.qvel[:], data.qacc[:] = q[k], dq[k], ddq[k]
-            mujoco.mj_inverse(model, data)
-            tau[k] = data.qfrc_inverse
-        return tau
 
-    # Size each effect on run 1's rigid torque, then give MuJoCo the joint effects.
-    t, q, dq, ddq = runs[0]
-    base = rigid(q, dq, ddq)
-    rms = np.sqrt((base**2).mean(axis=0)) + 1e-9
+def inverse(mujoco, model, data, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray) -> np.ndarray:  # noqa: ANN001
+    """MuJoCo's inverse dynamics (`mj_inverse`: rigid body plus the model's joint effects) along q, dq, ddq."""
+    tau = np.zeros_like(q)
+    for k in range(len(q)):
+        data.qpos[:], data.qvel[:], data.qacc[:] = q[k], dq[k], ddq[k]
+        mujoco.mj_inverse(model, data)
+        tau[k] = data.qfrc_inverse
+    return tau
+
+
+def set_effects(model, spec_effects: list[dict], q: np.ndarray, dq: np.ndarray, ddq: np.ndarray, rms: np.ndarray):  # noqa: ANN001, ANN201
+    """Sizes each effect of `spec_effects` (a share of the joint's rigid torque RMS `rms` along q, dq, ddq, or an
+    absolute `coefficient`) and gives MuJoCo the joint effects; returns the effects with their coefficients and
+    the constant offsets (added to the recorded torque)."""
     effects = []
-    for e in spec["effects"]:
+    for e in spec_effects:
         j = e["joint"] - 1
         col = column(e["effect"], q[:, j], dq[:, j], ddq[:, j])
         col_rms = max(float(np.sqrt((col**2).mean())), 1e-12)
@@ -216,31 +209,61 @@ def simulate(mujoco, spec: dict, urdf: Path, work: Path, runs: list | None = Non
         elif e["effect"] == "spring":
             model.jnt_stiffness[j] = coef
             model.qpos_spring[j] = 0.0
-    offset = np.zeros(n)
+    offset = np.zeros(model.nv)
     for e in effects:
         if e["effect"] == "offset":
             offset[e["joint"] - 1] = e["coefficient"]
-    paths = []
+    return effects, offset
+
+
+def write_log(
+    spec: dict, rng: np.random.Generator, t: np.ndarray, q: np.ndarray, dq: np.ndarray, tau: np.ndarray, path: Path
+) -> Path:
+    """The CSV a robot would log of the motion (t, q, dq, tau): torque noise (`noise` of each joint's RMS),
+    `encoder_bits` quantisation, `drop`ped samples, timing `jitter`, a noisy velocity column if
+    `velocity_column`."""
+    n = q.shape[1]
+    dt_sim = 1.0 / spec["rate"]
     step = 2 * math.pi / 2 ** spec["encoder_bits"]
+    tau_rms = np.sqrt((tau**2).mean(axis=0)) + 1e-12
+    tau_meas = tau + spec["noise"] * tau_rms * rng.standard_normal(tau.shape)
+    q_meas = np.round(q / step) * step
+    keep = rng.random(len(t)) >= spec["drop"]
+    t_meas = t + spec["jitter"] * dt_sim * rng.uniform(-0.5, 0.5, len(t))
+    t_meas[0] = t[0]
+    cols = ["t"] + [f"q{j + 1}" for j in range(n)]
+    blocks = [t_meas[:, None], q_meas]
+    if spec["velocity_column"]:
+        cols += [f"dq{j + 1}" for j in range(n)]
+        blocks.append(dq + 0.002 * np.sqrt((dq**2).mean(axis=0)) * rng.standard_normal(dq.shape))
+    cols += [f"tau{j + 1}" for j in range(n)]
+    blocks.append(tau_meas)
+    table = np.hstack(blocks)[keep]
+    np.savetxt(path, table, delimiter=",", header=",".join(cols), comments="", fmt="%.10g")
+    return path
+
+
+def simulate(mujoco, spec: dict, urdf: Path, work: Path, runs: list | None = None) -> tuple[list[Path], list[dict]]:  # noqa: ANN001
+    """Three logs of the case, and the effects with their coefficients (sized on the first run). `runs`: the motions
+    `(t, q, dq, ddq)` to log instead of the case's own three (one log each, `run1.csv`…)."""
+    model = load_model(mujoco, urdf)
+    data = mujoco.MjData(model)
+    rng = np.random.default_rng(spec["seed"] + 1_000_003)
+    dt_sim = 1.0 / spec["rate"]
+    if runs is None:
+        runs = []
+        for _ in range(3):
+            t = np.arange(0.0, spec["duration"], dt_sim)
+            q, dq, ddq = excitation(rng, spec["kinds"], t, spec["excitation"])
+            runs.append((t, q, dq, ddq))
+    # Size each effect on run 1's rigid torque, then give MuJoCo the joint effects.
+    t, q, dq, ddq = runs[0]
+    rms = np.sqrt((inverse(mujoco, model, data, q, dq, ddq) ** 2).mean(axis=0)) + 1e-9
+    effects, offset = set_effects(model, spec["effects"], q, dq, ddq, rms)
+    paths = []
     for r, (t, q, dq, ddq) in enumerate(runs):
-        tau = rigid(q, dq, ddq) + offset
-        tau_rms = np.sqrt((tau**2).mean(axis=0)) + 1e-12
-        tau_meas = tau + spec["noise"] * tau_rms * rng.standard_normal(tau.shape)
-        q_meas = np.round(q / step) * step
-        keep = rng.random(len(t)) >= spec["drop"]
-        t_meas = t + spec["jitter"] * dt_sim * rng.uniform(-0.5, 0.5, len(t))
-        t_meas[0] = t[0]
-        cols = ["t"] + [f"q{j + 1}" for j in range(n)]
-        blocks = [t_meas[:, None], q_meas]
-        if spec["velocity_column"]:
-            cols += [f"dq{j + 1}" for j in range(n)]
-            blocks.append(dq + 0.002 * np.sqrt((dq**2).mean(axis=0)) * rng.standard_normal(dq.shape))
-        cols += [f"tau{j + 1}" for j in range(n)]
-        blocks.append(tau_meas)
-        table = np.hstack(blocks)[keep]
-        path = work / f"run{r + 1}.csv"
-        np.savetxt(path, table, delimiter=",", header=",".join(cols), comments="", fmt="%.10g")
-        paths.append(path)
+        tau = inverse(mujoco, model, data, q, dq, ddq) + offset
+        paths.append(write_log(spec, rng, t, q, dq, tau, work / f"run{r + 1}.csv"))
     return paths, effects
 
 

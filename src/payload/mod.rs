@@ -6,6 +6,7 @@
 //! |---|---|
 //! | [`runs`] | a run's torque and states (the file's derivatives, or `identify`'s estimator) |
 //! | [`align`] | the unloaded twin's time shift, and the check that it is the same motion |
+//! | [`cutoff`] | the automatic derivative cut-off: a scan judged on the unfiltered rows |
 //! | [`rows`] | the regression `d = Y_n·φ` of the last link's regressor columns |
 //! | [`fit`] | weighted least squares, physical consistency, σ |
 //! | [`drive_gain`] | the per-joint torque scales from a payload of known mass |
@@ -21,6 +22,7 @@
 //! ```
 
 pub mod align;
+pub mod cutoff;
 pub mod drive_gain;
 pub mod fit;
 pub mod output;
@@ -81,6 +83,8 @@ pub struct RunFit {
     pub source: String,
     pub twin: Option<String>,
     pub alignment: Option<Alignment>,
+    /// The derivative cut-off the run's states were estimated with (`None`: the file's own).
+    pub cutoff_hz: Option<f64>,
     pub rms_before: Vec<f64>,
     pub rms_after: Vec<f64>,
 }
@@ -141,34 +145,33 @@ pub fn identify_payload_with(
         params: &p,
         effects: &arm.effects,
     };
-    let mut all_rows = Vec::new();
-    let mut fits = Vec::new();
-    let mut twins = unloaded.into_iter();
-    progress.stage(
-        "payload: reading and aligning the runs",
-        loaded.len() as u64,
-    );
-    for traj in loaded {
-        let run = runs::Run::new(traj, &given, &opts.derivative)?;
-        let twin = match twins.next() {
-            Some(u) => Some(runs::Run::new(u, &given, &opts.derivative)?),
-            None => None,
-        };
-        let alignment = match &twin {
-            Some(u) => Some(align::align(&run, u)?),
-            None => None,
-        };
-        let r = rows::build(&am, &run, twin.as_ref().zip(alignment.as_ref()));
-        fits.push(RunFit {
-            source: run.source.clone(),
-            twin: twin.as_ref().map(|u| u.source.clone()),
-            alignment,
-            rms_before: vec![],
-            rms_after: vec![],
-        });
-        all_rows.push(r);
-        progress.step();
+    progress.stage("payload: reading and aligning the runs", 1);
+    let mut prep = prepare(&am, &loaded, &unloaded, &given, &opts.derivative)?;
+    progress.step();
+    if let (None, Some(proposal)) = (opts.derivative.cutoff_hz, prep.cutoff_hz) {
+        let grid = cutoff::grid(proposal, prep.fs_hz);
+        progress.stage("payload: the cut-off scan", grid.len() as u64);
+        let mut best = cutoff::score(&prep.rows, &prep.raw);
+        for fc in grid {
+            let d = derivative::Options {
+                method: opts.derivative.method,
+                cutoff_hz: Some(fc),
+            };
+            // A cut-off the runs are too short for is skipped, not an error.
+            if let Ok(p) = prepare(&am, &loaded, &unloaded, &given, &d) {
+                let s = cutoff::score(&p.rows, &p.raw);
+                if s < best {
+                    (best, prep) = (s, p);
+                }
+            }
+            progress.step();
+        }
     }
+    let Prepared {
+        rows: mut all_rows,
+        mut fits,
+        ..
+    } = prep;
     if all_rows.iter().all(|r| r.is_empty()) {
         return Err(PayloadError::Input(
             "no usable samples in the loaded runs (too short for the filter's reach?)".into(),
@@ -236,6 +239,68 @@ pub fn identify_payload_with(
         projected: f.projected,
         warnings,
     })
+}
+
+/// The runs read, aligned and turned into rows at one derivative setting.
+struct Prepared {
+    /// The fit's rows (filtered) and the same unfiltered, per loaded run.
+    rows: Vec<rows::Rows>,
+    raw: Vec<rows::Rows>,
+    fits: Vec<RunFit>,
+    /// The first loaded run's cut-off (`None`: the file's own derivatives) and sampling rate.
+    cutoff_hz: Option<f64>,
+    fs_hz: f64,
+}
+
+fn prepare(
+    am: &rows::ArmModel,
+    loaded: &[Trajectory],
+    unloaded: &[Trajectory],
+    given: &[f64],
+    d: &derivative::Options,
+) -> Result<Prepared, PayloadError> {
+    let mut out = Prepared {
+        rows: vec![],
+        raw: vec![],
+        fits: vec![],
+        cutoff_hz: None,
+        fs_hz: 0.0,
+    };
+    for (i, traj) in loaded.iter().enumerate() {
+        let run = runs::Run::new(traj.clone(), given, d)?;
+        if i == 0 {
+            out.cutoff_hz = run.cutoff_hz;
+            let span = run.t[run.len() - 1] - run.t[0];
+            out.fs_hz = (run.len() - 1) as f64 / span.max(1e-12);
+        }
+        // The twin's states through the loaded run's own filter: the model terms of the two runs
+        // must cancel, and at two cut-offs they do not (an inertial torque filtered at two
+        // cut-offs differs by far more than the payload's).
+        let twin_opts = derivative::Options {
+            method: d.method,
+            cutoff_hz: run.cutoff_hz.or(d.cutoff_hz),
+        };
+        let twin = match unloaded.get(i) {
+            Some(u) => Some(runs::Run::new(u.clone(), given, &twin_opts)?),
+            None => None,
+        };
+        let alignment = match &twin {
+            Some(u) => Some(align::align(&run, u)?),
+            None => None,
+        };
+        let (r, raw) = rows::build(am, &run, twin.as_ref().zip(alignment.as_ref()));
+        out.fits.push(RunFit {
+            source: run.source.clone(),
+            twin: twin.as_ref().map(|u| u.source.clone()),
+            alignment,
+            cutoff_hz: run.cutoff_hz,
+            rms_before: vec![],
+            rms_after: vec![],
+        });
+        out.rows.push(r);
+        out.raw.push(raw);
+    }
+    Ok(out)
 }
 
 /// The checks of the inputs that need no data: sizes, the known mass, the drive-gain list. Returns

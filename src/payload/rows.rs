@@ -56,9 +56,11 @@ impl ArmModel<'_> {
     }
 }
 
-/// The rows of `loaded` (and its aligned twin). With an estimated run, `d` and every column of
-/// `Y_n` go through the run's zero-phase filter, and the filter's reach is cut off both ends.
-pub fn build(arm: &ArmModel, loaded: &Run, twin: Option<(&Run, &Alignment)>) -> Rows {
+/// The rows of `loaded` (and its aligned twin), and the same rows unfiltered. With an estimated
+/// run, `d` and every column of `Y_n` go through the run's zero-phase filter (the fit's rows),
+/// and the filter's reach is cut off both ends; the unfiltered rows (`Y_n` of the estimated
+/// states against the measured `d`) judge the cut-off (see [`super::cutoff`]).
+pub fn build(arm: &ArmModel, loaded: &Run, twin: Option<(&Run, &Alignment)>) -> (Rows, Rows) {
     let n = loaded.dof();
     let np = 10 * n;
     let mut ws = arm.model.workspace();
@@ -108,6 +110,7 @@ pub fn build(arm: &ArmModel, loaded: &Run, twin: Option<(&Run, &Alignment)>) -> 
             }
         }
     }
+    let (raw_ys, raw_ds) = (ys.clone(), ds.clone());
     let mut lo = 0;
     let mut hi = len;
     if let (Some(f), Some(fc)) = (&loaded.filter, loaded.cutoff_hz) {
@@ -122,6 +125,14 @@ pub fn build(arm: &ArmModel, loaded: &Run, twin: Option<(&Run, &Alignment)>) -> 
             hi = len - edge;
         }
     }
+    (
+        interleave(n, &ys, &ds, lo, hi),
+        interleave(n, &raw_ys, &raw_ds, lo, hi),
+    )
+}
+
+/// Samples `lo..hi` of per-column series as rows (sample `k`, joint `j` is row `k·n + j`).
+fn interleave(n: usize, ys: &[Vec<f64>], ds: &[Vec<f64>], lo: usize, hi: usize) -> Rows {
     let mut rows = Rows {
         n,
         y: Vec::with_capacity((hi - lo) * n),

@@ -1,6 +1,7 @@
 //! `identified.urdf` is the user's URDF with new inertials: `urdf::roundtrip::rewrite` on every
-//! URDF the project ships or tests with (TIAGo, random trees with every joint kind, locked and
-//! fixed bodies, links without `<inertial>`, a mimic gripper). The oracles: (1) the rewritten
+//! URDF the project ships (data/urdf/, TIAGo) and on random trees with every joint kind, locked
+//! and fixed bodies, links without `<inertial>`, a mimic gripper. (The example-robot-data URDFs
+//! the tests import go through `identify` and Pinocchio in python/tests/test_roundtrip.py.) The oracles: (1) the rewritten
 //! file, imported again, has exactly the dynamics of the parameters written into it (the import
 //! is itself checked against a URDF-native Newton–Euler and Pinocchio in `urdf.rs`); (2) its
 //! XML tree equals the original's once `<inertial>` and `<dynamics>` are taken out.
@@ -127,6 +128,23 @@ fn tiago_keeps_everything_but_the_moving_inertials() {
         1
     );
     assert!(out.len() > text.len() / 2);
+}
+
+#[test]
+fn the_arm_urdfs_of_data_urdf_round_trip() {
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../data/urdf");
+    let mut rng = rng(3940);
+    let mut seen = Vec::new();
+    for entry in std::fs::read_dir(dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_some_and(|e| e == "urdf") {
+            let text = std::fs::read_to_string(&path).unwrap();
+            let origin = path.display().to_string();
+            check(&text, &origin, &ImportOptions::default(), &mut rng);
+            seen.push(origin);
+        }
+    }
+    assert!(seen.len() >= 3, "{seen:?}");
 }
 
 #[test]
