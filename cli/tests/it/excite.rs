@@ -21,12 +21,7 @@ struct Csv {
 }
 
 fn read_csv(path: &Path) -> Csv {
-    let text = std::fs::read_to_string(path).unwrap();
-    let mut lines = text.lines();
-    let header = lines.next().unwrap().to_string();
-    let rows = lines
-        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
-        .collect();
+    let (header, rows) = crate::common::read_csv(path);
     Csv { header, rows }
 }
 
