@@ -28,6 +28,7 @@ use dynid::params::{InertialParams, ParamsOptions};
 use dynid::reference::RefModel;
 use dynid::sim::{simulate, Integrator, Plant, SimConfig};
 use dynid::trajectory::TrajectorySpec;
+use dynid::urdf::Imported;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum ControllerKind {
@@ -240,11 +241,11 @@ fn write_log(args: &Args, log: &dynid::sim::SimLog, n: usize) -> Result<()> {
 }
 
 /// The true parameters: `--params`, or a URDF arm's own inertials.
-fn truth(args: &Args, n: usize) -> Result<InertialParams> {
+fn truth(args: &Args, n: usize, urdf: Option<Imported>) -> Result<InertialParams> {
     if let Some(p) = &args.params {
         return Ok(InertialParams::from_path(p, n, &ParamsOptions::default())?);
     }
-    match resolve_urdf(&args.arm)? {
+    match urdf {
         Some(imported) => {
             eprintln!(
                 "note: no --params: simulating {} with its URDF's own <inertial>s",
@@ -279,10 +280,15 @@ fn bodies(
 }
 
 pub fn run(args: &Args) -> Result<()> {
-    let arm = resolve(&args.arm)?;
+    // A URDF is imported once: its table is the arm, its inertials the default truth.
+    let urdf = resolve_urdf(&args.arm)?;
+    let arm = match &urdf {
+        Some(imported) => ArmSource::Table(imported.table.clone()),
+        None => resolve(&args.arm)?,
+    };
     let n = arm.dof();
     check_numbers(args)?;
-    let truth = truth(args, n)?;
+    let truth = truth(args, n, urdf)?;
     let estimate = match &args.estimate {
         Some(p) => InertialParams::from_path(
             p,
