@@ -309,18 +309,11 @@ def run_arm(args: tuple[str, dict, int, Path, float, int]) -> dict:
     rng = np.random.default_rng(case["seed"] + 17)
     spec = spec_for(case, arm["kinds"], rng, rate)
 
-    model = mujoco.MjModel.from_xml_path(str(arm["urdf"]))
-    model.jnt_limited[:] = 0
-    model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
+    model = suite.load_model(mujoco, arm["urdf"])
     data = mujoco.MjData(model)
 
     def rigid(q, dq, ddq):  # noqa: ANN001, ANN202
-        tau = np.zeros_like(q)
-        for k in range(len(q)):
-            data.qpos[:], data.qvel[:], data.qacc[:] = q[k], dq[k], ddq[k]
-            mujoco.mj_inverse(model, data)
-            tau[k] = data.qfrc_inverse
-        return tau
+        return suite.inverse(mujoco, model, data, q, dq, ddq)
 
     def sim(spec: dict, d: Path, runs: list) -> tuple[list[Path], list[dict]]:
         d.mkdir(parents=True, exist_ok=True)
