@@ -57,7 +57,8 @@ impl ArmModel<'_> {
 }
 
 /// The rows of `loaded` (and its aligned twin), and the same rows unfiltered. With an estimated
-/// run, `d` and every column of `Y_n` go through the run's zero-phase filter (the fit's rows),
+/// run, every column of `Y_n` goes through the run's zero-phase filter once more and `d` twice
+/// (the fit's rows: both then carry the filter twice),
 /// and the filter's reach is cut off both ends; the unfiltered rows (`Y_n` of the estimated
 /// states against the measured `d`) judge the cut-off (see [`super::cutoff`]).
 pub fn build(arm: &ArmModel, loaded: &Run, twin: Option<(&Run, &Alignment)>) -> (Rows, Rows) {
@@ -114,8 +115,15 @@ pub fn build(arm: &ArmModel, loaded: &Run, twin: Option<(&Run, &Alignment)>) -> 
     let mut lo = 0;
     let mut hi = len;
     if let (Some(f), Some(fc)) = (&loaded.filter, loaded.cutoff_hz) {
+        // The states already went through the filter once, so `Y_n` of them is the torque
+        // filtered once; `d` (measured) is filtered twice to match `Y_n` filtered again. A
+        // cut-off inside the motion band would otherwise scale the inertial columns against
+        // `d` (a joint the payload loads only through inertia read a drive gain 5 % off).
         let zp = f.as_zero_phase();
         for s in ys.iter_mut().chain(ds.iter_mut()) {
+            zp.apply(s, true, true);
+        }
+        for s in ds.iter_mut() {
             zp.apply(s, true, true);
         }
         let dt = (loaded.t[loaded.len() - 1] - loaded.t[0]) / (loaded.len() - 1).max(1) as f64;
