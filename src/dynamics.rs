@@ -10,6 +10,7 @@
 use std::sync::Mutex;
 
 use crate::cholesky::{cholesky, cholesky_solve};
+use crate::dh::MAX_JOINTS;
 use crate::model::Model;
 use crate::reference::{RefModel, Workspace};
 
@@ -147,8 +148,9 @@ impl Dynamics for Reference {
     }
     fn forward_dynamics(&self, q: &[f64], dq: &[f64], tau: &[f64], out: &mut [f64]) {
         let n = self.dof();
-        let mut m = vec![0.0; n * n];
-        if !self.factor(q, &mut m) {
+        let mut m = [0.0; MAX_JOINTS * MAX_JOINTS];
+        let m = &mut m[..n * n];
+        if !self.factor(q, m) {
             out.fill(f64::NAN);
             return;
         }
@@ -156,7 +158,7 @@ impl Dynamics for Reference {
         for (o, t) in out.iter_mut().zip(tau) {
             *o = t - *o;
         }
-        cholesky_solve(&m, n, out);
+        cholesky_solve(m, n, out);
     }
     fn inverse_dynamics_derivatives(&self, q: &[f64], dq: &[f64], ddq: &[f64], out: &mut [f64]) {
         self.model
@@ -165,8 +167,8 @@ impl Dynamics for Reference {
     fn forward_dynamics_derivatives(&self, q: &[f64], dq: &[f64], tau: &[f64], out: &mut [f64]) {
         // The reference's own version asserts a positive definite `M`; test it first.
         let n = self.dof();
-        let mut m = vec![0.0; n * n];
-        if !self.factor(q, &mut m) {
+        let mut m = [0.0; MAX_JOINTS * MAX_JOINTS];
+        if !self.factor(q, &mut m[..n * n]) {
             out.fill(f64::NAN);
             return;
         }
