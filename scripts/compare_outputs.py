@@ -4,8 +4,9 @@ Runs every command of a fixed list (the paper, identify on the shared simulated 
 TIAGo URDF round trip, excite, simulate on a generated arm and on a URDF, torque, payload, import/export
 URDF) with each binary into its own directory, then compares every file byte for byte. Only what is meant to
 differ between two runs of the same binary is masked first: wall-clock times (`Run time: 12.3 s`, a timing
-table's seconds, the solver's `Newton steps (68 ms)`, the search's `stopped by …, 4.0 s`, JSON keys
-`timings`/`runtime_s`/`seconds`/`elapsed_s`) and nothing else; `--show-masked` prints what was masked.
+table's seconds, the solver's `Newton steps (68 ms)`, the search's `stopped by …, 4.0 s`, the paper command's
+`in 35.3 s;`, JSON keys `timings`/`runtime_s`/`seconds`/`elapsed_s`) and nothing else; `--show-masked` prints
+what was masked.
 
     python scripts/compare_outputs.py --before /tmp/old/dynid --after target/release/dynid [--only paper,identify]
 
@@ -73,6 +74,7 @@ CASES: dict[str, list[list[str]]] = {
 
 TIME_LINE = re.compile(r"(Run time: )[0-9.]+( s)")
 SOLVER_TIME = re.compile(r"(Newton steps \(|stopped by [a-z ]+, )[0-9.]+( ms\)| s)")
+WROTE_IN = re.compile(r"(\) in )[0-9.]+( s;)")  # the paper command's closing line: "wrote paper (…) in 35.3 s;"
 TIME_JSON_KEYS = {"timings", "runtime_s", "seconds", "elapsed_s"}
 
 
@@ -91,6 +93,8 @@ def mask(path: Path, data: bytes) -> bytes:
             return json.dumps(mask_json(json.loads(data)), indent=1, sort_keys=True).encode()
         except ValueError:
             return data
+    if path.suffix == ".exit":
+        return WROTE_IN.sub(r"\1<time>\2", data.decode()).encode()
     if path.suffix == ".md":
         text = SOLVER_TIME.sub(r"\1<time>\2", TIME_LINE.sub(r"\1<time>\2", data.decode()))
         # The paper report's timing table: `| stage | seconds |` rows under "## Run time".
