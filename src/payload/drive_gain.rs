@@ -139,6 +139,22 @@ fn refine(
     (x, nm, rms)
 }
 
+/// How well `rows` determine the scales: the mean over joints of `ln σ_j`, the log of each
+/// scale's σ (∞ when the fit fails). The cut-off scan minimises it when the mass is known: σ grows where the filter
+/// cuts into the motion (misfit) and where it lets noise into q̈, and a cut-off chosen for the
+/// payload alone can sit low enough to bias a joint the payload loads only through inertia
+/// (MuJoCo seed 26, PUMA joint 1: 2.2 % off at 1.6 Hz with σ 0.55 %, 0.02 % at 3.2 Hz with
+/// σ 0.09 %).
+pub fn spread(rows: &[Rows], mass: f64) -> f64 {
+    match drive_gains(rows, mass) {
+        Ok(g) => {
+            let n = g.scale.len() as f64;
+            g.sigma.iter().map(|sd| sd.max(1e-300).ln()).sum::<f64>() / n
+        }
+        Err(_) => f64::INFINITY,
+    }
+}
+
 /// Estimates the scales from rows built with unscaled (or `--torque-scale`-scaled) torque.
 pub fn drive_gains(rows: &[Rows], mass: f64) -> Result<DriveGains, PayloadError> {
     let n = rows[0].n;

@@ -151,7 +151,12 @@ pub fn identify_payload_with(
     if let (None, Some(proposal)) = (opts.derivative.cutoff_hz, prep.cutoff_hz) {
         let grid = cutoff::grid(proposal, prep.fs_hz);
         progress.stage("payload: the cut-off scan", grid.len() as u64);
-        let mut best = cutoff::score(&prep.rows, &prep.raw);
+        // With the mass known the scales are what is estimated, so their σ judges the cut-off.
+        let judge = |p: &Prepared| match opts.mass {
+            Some(m) => drive_gain::spread(&p.rows, m),
+            None => cutoff::score(&p.rows, &p.raw),
+        };
+        let mut best = judge(&prep);
         for fc in grid {
             let d = derivative::Options {
                 method: opts.derivative.method,
@@ -159,7 +164,7 @@ pub fn identify_payload_with(
             };
             // A cut-off the runs are too short for is skipped, not an error.
             if let Ok(p) = prepare(&am, &loaded, &unloaded, &given, &d) {
-                let s = cutoff::score(&p.rows, &p.raw);
+                let s = judge(&p);
                 if s < best {
                     (best, prep) = (s, p);
                 }
