@@ -108,14 +108,12 @@ fn coarse_pick(costs: &[(i64, f64)], overlap: impl Fn(i64) -> i64) -> Option<(i6
     let mut previous_near = false;
     for &(l, v) in costs {
         let near = v <= 2.0 * floor + 1e-3;
-        match matches.last_mut() {
-            Some(m) if near && previous_near => {
-                if v < m.1 {
-                    *m = (l, v);
-                }
+        if near {
+            match matches.last_mut() {
+                Some(m) if previous_near && v < m.1 => *m = (l, v),
+                Some(_) if previous_near => {}
+                _ => matches.push((l, v)),
             }
-            _ if near => matches.push((l, v)),
-            _ => {}
         }
         previous_near = near;
     }
