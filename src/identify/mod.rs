@@ -46,7 +46,7 @@
 //!    are rebuilt); when one is found, the scan is repeated with it in its models
 //!    ([`LoadModel`]).
 //!    No effect is searched on a weak joint (`weak.rs`: its torque sits on its resolution floor).
-//! 6b. **Per-joint guard** (`guard.rs`, with `--effects auto`): the plain fit (rigid body +
+//!    Then the **per-joint guard** (`guard.rs`, with `--effects auto`): the plain fit (rigid body +
 //!    viscous, Coulomb, offset, armature on every joint) is always fitted; where it predicts a
 //!    joint better on held-out training data (by run, or by block with one file), the plain terms
 //!    the search left out are added, and the verdict per joint is reported.

@@ -514,7 +514,7 @@ impl Models {
                 x: x.to_vec(),
             }
         });
-        let steps = self.step_rows(&before, &result);
+        let steps = self.step_rows(&before, result);
         let plain = self.plain().map(result);
         Ok(Judgement {
             before,
