@@ -463,7 +463,7 @@ pub struct Errors {
     pub tss: Vec<f64>,
     /// The joints `overall` pools (0-based); `None` = all. An arm with joints of different
     /// units (a prismatic joint's N, a revolute one's N·m) or with weak joints pools only the
-    /// identifiable joints of one unit ([`super::guard::pooled_joints`]).
+    /// identifiable joints of one unit ([`super::weak::pooled_joints`]).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub pooled_joints: Option<Vec<usize>>,
 }
