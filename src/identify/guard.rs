@@ -1,4 +1,4 @@
-//! Stage 6b, **the per-joint guard** ([`guard`]): the selected model must not predict any joint
+//! Stage 6b, **the per-joint guard** (`guard`): the selected model must not predict any joint
 //! worse than the *plain fit* — the rigid base parameters plus viscous, Coulomb, offset and
 //! rotor inertia (armature) on every joint, one least-squares solve — on held-out data inside
 //! the training set: cross-validation by run (each file predicted by the fit without it) when
@@ -67,7 +67,7 @@ pub struct JointGuard {
     pub cause: Option<String>,
 }
 
-/// What the guard did ([`guard`]).
+/// What the guard did.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Guard {
     /// `run` (leave one training file out) or `block` (leave one time block out).
