@@ -9,7 +9,6 @@
 //! | `offset` | `1` | N·m |
 //! | `armature` | `q̈ⱼ` (rotor inertia reflected through the gear) | kg·m² |
 //! | `spring` | `qⱼ` (linear spring; its rest angle appears as an offset) | N·m/rad |
-//! | `drift` | `t`, the time since the start of the run (slow thermal drift: a motor's and gear's friction and a torque sensor's zero change as they warm up, over minutes — nearly linear over one run) | N·m/s |
 //! | `loadcoulomb` | `tanh(q̇ⱼ / vⱼ) · |τ̂ⱼ|`, τ̂ⱼ the rigid-body torque of joint j (load-dependent friction: a gear's friction grows with the torque it transmits) | N·m per N·m |
 //!
 //! `loadcoulomb` is bilinear (its column holds the rigid-body parameters), so it is fitted in two
@@ -17,11 +16,9 @@
 //! column is then filtered and tested like any other ([`Effect::LOADED`] are searched after the
 //! rest, in the identification's second stage).
 //!
-//! Asymmetric Coulomb friction (`Fc⁺` for q̇ > 0, `Fc⁻` for q̇ < 0) is
-//! `½(Fc⁺+Fc⁻)·sgn q̇ + ½(Fc⁺−Fc⁻)·|sgn q̇|`: `coulomb` plus `offset` while the joint moves, so it
-//! has no column of its own. At rest the two differ (the offset stays, the friction holds
-//! nothing), and a `|sgn q̇|` column does not help: the estimated velocity at rest is noise, so
-//! its value there is too (the suite, docs/eval.md). More effects: add a variant, its
+//! Asymmetric Coulomb friction (`Fc⁺` for q̇ > 0, `Fc⁻` for q̇ < 0) is `coulomb` + `offset` in
+//! disguise: `Fc⁺·[q̇>0] − Fc⁻·[q̇<0] = ½(Fc⁺+Fc⁻)·sgn q̇ + ½(Fc⁺−Fc⁻)`, so the report derives it
+//! when both are found instead of adding a redundant column. More effects: add a variant, its
 //! column in [`Effect::column`] (`column.rs`: the one implementation of its physics, used by
 //! identification, simulation and synthetic data) and its name.
 //!
@@ -53,21 +50,19 @@ pub enum Effect {
     Offset,
     Armature,
     Spring,
-    Drift,
     #[serde(rename = "loadcoulomb")]
     LoadCoulomb,
 }
 
 impl Effect {
     /// Every effect, in the order candidates are listed.
-    pub const ALL: [Effect; 7] = [
+    pub const ALL: [Effect; 6] = [
         Effect::Viscous,
         Effect::Coulomb,
         Effect::Stribeck,
         Effect::Offset,
         Effect::Armature,
         Effect::Spring,
-        Effect::Drift,
     ];
 
     /// Effects whose column needs the rigid-body torque of a first-stage fit: searched after
@@ -92,7 +87,6 @@ impl Effect {
             Effect::Offset => "offset",
             Effect::Armature => "armature",
             Effect::Spring => "spring",
-            Effect::Drift => "drift",
             Effect::LoadCoulomb => "loadcoulomb",
         }
     }
@@ -109,7 +103,6 @@ impl Effect {
             Effect::Coulomb | Effect::Stribeck | Effect::Offset => "N·m",
             Effect::Armature => "kg·m²",
             Effect::Spring => "N·m/rad",
-            Effect::Drift => "N·m/s",
             Effect::LoadCoulomb => "N·m/N·m",
         }
     }
