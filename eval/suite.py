@@ -40,6 +40,19 @@ import numpy as np
 SKIP = 77
 REPO = Path(__file__).resolve().parents[1]
 EFFECTS = ["viscous", "coulomb", "armature", "spring", "offset"]
+# The effects real arms show (issue 40), drawn with `--extended` and added to the recorded torque (docs/eval.md):
+# position ripple sin(k·q + φ), asymmetric Coulomb (Fc+ ≠ Fc-), a per-run offset (sensor re-zeroing) and a slow
+# thermal drift 1 - exp(-t/T) over each run.
+NEW_EFFECTS = ["ripple", "asym_coulomb", "run_offset", "drift"]
+# Per new effect: the library's effect kinds that model it (all must be found for it to count as found) and the
+# kinds that may absorb part of it without being a false positive (a drift's or per-run offset's mean is an
+# offset). An effect with no library kind yet is scored as missed.
+MODELLED_BY: dict[str, tuple[list[str], list[str]]] = {
+    "ripple": ([], []),
+    "asym_coulomb": (["coulomb", "offset"], []),
+    "run_offset": ([], ["offset"]),
+    "drift": ([], ["offset"]),
+}
 GENERATED = ["planar2", "puma560", "panda", "scara"]
 CUTOFF_GRID = [1.0, 2.0, 4.0, 8.0, 16.0]
 
@@ -116,9 +129,37 @@ def excitation(rng: np.random.Generator, kinds: list[str], t: np.ndarray, kind: 
     return q, dq, ddq
 
 
-def case_spec(seed: int, quick: bool = False) -> dict:
+def new_effects(seed: int, kinds: list[str]) -> list[dict]:
+    """The `--extended` effects of a case, from their own random stream (the other draws stay those of the plain
+    suite): each joint gets each new effect with probability 0.12 (ripple on revolute joints only), sized to a
+    torque share of 3-30 %. Shapes: ripple `sin(k·q + φ)`, k = 3-15 per radian; asymmetric Coulomb `[q̇>0] - ρ[q̇<0]`
+    with ρ (or 1/ρ) = 0.3-0.7; per-run offset `z_r`, z ~ N(0, 1) per run; drift `1 - exp(-t/T)`, T = 60-600 s."""
+    rng = np.random.default_rng(seed + 7_000_003)
+    out = []
+    for j, kind in enumerate(kinds):
+        for e in NEW_EFFECTS:
+            draw = rng.random() < 0.12
+            share = float(rng.uniform(0.03, 0.30))
+            k, phase, rho = rng.uniform(3.0, 15.0), rng.uniform(0, 2 * math.pi), rng.uniform(0.3, 0.7)
+            tau_s = rng.uniform(60.0, 600.0)
+            z = [float(x) for x in rng.standard_normal(3)]
+            flip = bool(rng.random() < 0.5)
+            if not draw or (e == "ripple" and kind != "revolute"):
+                continue
+            shape = {
+                "ripple": {"k": float(k), "phase": float(phase)},
+                "asym_coulomb": {"rho": float(1 / rho if flip else rho)},
+                "run_offset": {"z": z},
+                "drift": {"T": float(tau_s)},
+            }[e]
+            out.append({"effect": e, "joint": j + 1, "share": share, **shape})
+    return out
+
+
+def case_spec(seed: int, quick: bool = False, extended: bool = False) -> dict:
     """Everything random about a case, from its seed (the simulation itself is deterministic). `quick` (the test
-    command's subset): the same draws, then at most 4 joints (planar2 or scara for a generated arm), 500 Hz and 15 s."""
+    command's subset): the same draws, then at most 4 joints (planar2 or scara for a generated arm), 500 Hz and 15 s.
+    `extended`: the same case plus the effects real arms show ([`new_effects`])."""
     rng = np.random.default_rng(seed)
     spec: dict = {"seed": seed, "quick": quick}
     if rng.random() < 0.5:
@@ -157,6 +198,7 @@ def case_spec(seed: int, quick: bool = False) -> dict:
         spec["effects"] = [e for e in spec["effects"] if e["joint"] <= n]
         spec["rate"] = min(spec["rate"], 500.0)
         spec["duration"] = 15.0
+    spec["new_effects"] = new_effects(seed, spec["kinds"]) if extended else []
     return spec
 
 
@@ -216,6 +258,33 @@ def set_effects(model, spec_effects: list[dict], q: np.ndarray, dq: np.ndarray, 
     return effects, offset
 
 
+def new_shape(e: dict, run: int, t: np.ndarray, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
+    """The torque of a new effect of unit size on run `run` (0-based) of joint e's motion q, dq (t from the run's
+    start)."""
+    if e["effect"] == "ripple":
+        return np.sin(e["k"] * q + e["phase"])
+    if e["effect"] == "asym_coulomb":
+        return np.where(dq > 0, 1.0, 0.0) - e["rho"] * np.where(dq < 0, 1.0, 0.0)
+    if e["effect"] == "run_offset":
+        return np.full_like(q, e["z"][run % len(e["z"])])
+    return 1.0 - np.exp(-(t - t[0]) / e["T"])
+
+
+def new_torques(spec_new: list[dict], runs: list, rms: np.ndarray) -> tuple[list[dict], list[np.ndarray]]:
+    """Sizes each new effect (its RMS over all runs = `share` of the joint's rigid torque RMS on run 1) and returns
+    the effects with their coefficients and, per run, the torque they add."""
+    effects, extra = [], [np.zeros_like(r[1]) for r in runs]
+    for e in spec_new:
+        j = e["joint"] - 1
+        shapes = [new_shape(e, r, t, q[:, j], dq[:, j]) for r, (t, q, dq, _) in enumerate(runs)]
+        shape_rms = max(float(np.sqrt(np.mean(np.concatenate(shapes) ** 2))), 1e-12)
+        coef = e["share"] * rms[j] / shape_rms
+        effects.append({**e, "coefficient": coef})
+        for r, sh in enumerate(shapes):
+            extra[r][:, j] += coef * sh
+    return effects, extra
+
+
 def write_log(
     spec: dict, rng: np.random.Generator, t: np.ndarray, q: np.ndarray, dq: np.ndarray, tau: np.ndarray, path: Path
 ) -> Path:
@@ -260,14 +329,38 @@ def simulate(mujoco, spec: dict, urdf: Path, work: Path, runs: list | None = Non
     t, q, dq, ddq = runs[0]
     rms = np.sqrt((inverse(mujoco, model, data, q, dq, ddq) ** 2).mean(axis=0)) + 1e-9
     effects, offset = set_effects(model, spec["effects"], q, dq, ddq, rms)
+    added, extra = new_torques(spec.get("new_effects", []), runs, rms)
+    effects += added
     paths = []
     for r, (t, q, dq, ddq) in enumerate(runs):
-        tau = inverse(mujoco, model, data, q, dq, ddq) + offset
+        tau = inverse(mujoco, model, data, q, dq, ddq) + offset + extra[r]
         paths.append(write_log(spec, rng, t, q, dq, tau, work / f"run{r + 1}.csv"))
     return paths, effects
 
 
 # --- running and scoring ----------------------------------------------------------------------------------------
+
+
+def library_kinds() -> list[str]:
+    """The library's effect kinds the suite scores: the plain ones, then those that model a new effect."""
+    extra = [k for req, _ in MODELLED_BY.values() for k in req if k not in EFFECTS]
+    return EFFECTS + sorted(set(extra))
+
+
+def library_truth(effects: list[dict]) -> tuple[dict[str, float], set[str]]:
+    """The library's terms that are true in a case (term -> torque share: the plain effects and those modelling a
+    new effect, [`MODELLED_BY`]) and the terms that may absorb part of a new effect (not decisions when not true)."""
+    true, allowed = {}, set()
+    for e in effects:
+        if e["effect"] in EFFECTS:
+            true[f"{e['effect']}{e['joint']}"] = max(e["share"], true.get(f"{e['effect']}{e['joint']}", 0.0))
+            continue
+        required, absorbing = MODELLED_BY[e["effect"]]
+        for kind in required:
+            term = f"{kind}{e['joint']}"
+            true[term] = max(e["share"], true.get(term, 0.0))
+        allowed |= {f"{kind}{e['joint']}" for kind in absorbing}
+    return true, allowed - set(true)
 
 
 def identify(dynid: str, arm: str, runs: list[Path], out: Path, extra: list[str]) -> dict:
@@ -305,11 +398,11 @@ def pattern_spec(path: Path) -> dict:
     return spec
 
 
-def run_case(args: tuple[str, int, str, bool, str]) -> dict:
-    dynid, seed, keep, quick, pattern = args
+def run_case(args: tuple[str, int, str, bool, str, bool]) -> dict:
+    dynid, seed, keep, quick, pattern, extended = args
     import mujoco
 
-    spec = pattern_spec(Path(pattern)) if pattern else case_spec(seed, quick)
+    spec = pattern_spec(Path(pattern)) if pattern else case_spec(seed, quick, extended)
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(keep) / f"case{seed}" if keep else Path(tmp)
         work.mkdir(parents=True, exist_ok=True)
@@ -326,7 +419,8 @@ def run_case(args: tuple[str, int, str, bool, str]) -> dict:
         )
         runs, effects = simulate(mujoco, spec, urdf, work)
         truth = sorted(f"{e['effect']}{e['joint']}" for e in effects)
-        true_arg = ",".join(f"{e['effect']}:{e['joint']}" for e in effects) or "none"
+        terms = sorted(library_truth(effects)[0])
+        true_arg = ",".join(f"{t.rstrip('0123456789')}:{t[len(t.rstrip('0123456789')) :]}" for t in terms) or "none"
         auto = identify(dynid, arm, runs, work / "auto", [])
         true_auto = identify(dynid, arm, runs, work / "true_auto", ["--effects", true_arg])
         nyquist = 0.5 * spec["rate"]
@@ -342,6 +436,7 @@ def run_case(args: tuple[str, int, str, bool, str]) -> dict:
 def score(cases: list[dict]) -> dict:
     """The suite's numbers: decisions by effect kind and share, error ratios, run time."""
     decisions = []  # (kind, share or None, truth bool, found bool)
+    new_found = []  # (new effect, share, found by its library kinds)
     ratio, cutoff_ratio, seconds, failed = [], [], [], 0
     for c in cases:
         a = c["auto"]
@@ -350,15 +445,21 @@ def score(cases: list[dict]) -> dict:
             continue
         seconds.append(a["seconds"])
         n = len(c["spec"]["kinds"])
-        shares = {f"{e['effect']}{e['joint']}": e["share"] for e in c["effects"]}
-        for e in EFFECTS:
+        shares, allowed = library_truth(c["effects"])
+        hidden = set(a.get("not_identifiable", []))
+        for e in library_kinds():
             for j in range(1, n + 1):
                 term = f"{e}{j}"
                 # An effect that is a rigid-body parameter in disguise for every motion (armature of a first
                 # revolute joint about a fixed axis = ZZR1) is not a decision: no data can tell it apart.
-                if term in a.get("not_identifiable", []):
+                if term in hidden or term in allowed:
                     continue
                 decisions.append((e, shares.get(term), term in shares, term in a["found"]))
+        for e in c["effects"]:
+            if e["effect"] in NEW_EFFECTS:
+                required = [f"{kind}{e['joint']}" for kind in MODELLED_BY[e["effect"]][0]]
+                hit = bool(required) and all(t in a["found"] or t in hidden for t in required)
+                new_found.append((e["effect"], e["share"], hit))
         oracle = [g["validation"] for g in c["grid"].values() if "validation" in g]
         if oracle:
             best = min(oracle)
@@ -372,7 +473,7 @@ def score(cases: list[dict]) -> dict:
     out["false_positive_rate"] = sum(d[3] for d in negatives) / max(len(negatives), 1)
     out["decisions"] = len(decisions)
     out["per_kind"] = {}
-    for e in EFFECTS:
+    for e in library_kinds():
         pos = [d for d in decisions if d[0] == e and d[2]]
         neg = [d for d in decisions if d[0] == e and not d[2]]
         fp = sum(d[3] for d in neg)
@@ -383,6 +484,15 @@ def score(cases: list[dict]) -> dict:
             "precision": tp / max(tp + fp, 1),
             "false_positives": fp,
         }
+    out["new_effects"] = {
+        e: {
+            "present": sum(1 for d in new_found if d[0] == e),
+            "recall": sum(d[2] for d in new_found if d[0] == e) / max(sum(1 for d in new_found if d[0] == e), 1),
+            "in_library": bool(MODELLED_BY[e][0]),
+        }
+        for e in NEW_EFFECTS
+        if any(d[0] == e for d in new_found)
+    }
     bins = [(0.01, 0.03), (0.03, 0.1), (0.1, 0.3)]
     out["recall_by_share"] = {
         f"{lo:.0%}-{hi:.0%}": sum(d[3] for d in decisions if d[2] and lo <= d[1] < hi)
@@ -431,6 +541,11 @@ def markdown(s: dict, args: argparse.Namespace) -> str:
     ]
     for e, k in s["per_kind"].items():
         lines.append(f"| {e} | {k['present']} | {k['recall']:.3f} | {k['precision']:.3f} | {k['false_positives']} |")
+    if s.get("new_effects"):
+        lines += ["", "| new effect | present | recall | modelled by the library |", "|---|---|---|---|"]
+        for e, k in s["new_effects"].items():
+            kinds = " + ".join(MODELLED_BY[e][0]) or "nothing yet"
+            lines.append(f"| {e} | {k['present']} | {k['recall']:.3f} | {kinds} |")
     lines += ["", "| torque share | recall |", "|---|---|"]
     lines += [f"| {b} | {v:.3f} |" for b, v in s["recall_by_share"].items()]
     return "\n".join(lines) + "\n"
@@ -453,6 +568,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, required=True)
     ap.add_argument("--keep", action="store_true", help="keep every case's logs and reports under OUT/")
     ap.add_argument("--quick", action="store_true", help="the test command's subset: <= 4 joints, <= 500 Hz, 15 s")
+    ap.add_argument("--extended", action="store_true", help="add the effects real arms show (NEW_EFFECTS)")
     ap.add_argument("--pattern", type=Path, help="run one hand-written case (eval/patterns/*.json) instead")
     ap.add_argument(
         "--rescore", type=Path, nargs="+", metavar="DIR", help="score earlier runs' OUT dirs together (no identify)"
@@ -476,7 +592,7 @@ def main(argv: list[str] | None = None) -> int:
     pattern = str(a.pattern.resolve()) if a.pattern else ""
     if pattern:
         seeds = range(1)
-    jobs = [(str(Path(a.dynid).resolve()), s, keep, a.quick, pattern) for s in seeds]
+    jobs = [(str(Path(a.dynid).resolve()), s, keep, a.quick, pattern, a.extended) for s in seeds]
     start = time.perf_counter()
     cases = []
     with ProcessPoolExecutor(max_workers=a.jobs) as pool:
