@@ -16,9 +16,10 @@
 //! column is then filtered and tested like any other ([`Effect::LOADED`] are searched after the
 //! rest, in the identification's second stage).
 //!
-//! Asymmetric Coulomb friction (`Fc⁺` for q̇ > 0, `Fc⁻` for q̇ < 0) is `coulomb` + `offset` in
-//! disguise: `Fc⁺·[q̇>0] − Fc⁻·[q̇<0] = ½(Fc⁺+Fc⁻)·sgn q̇ + ½(Fc⁺−Fc⁻)`, so the report derives it
-//! when both are found instead of adding a redundant column. More effects: add a variant, its
+//! Asymmetric Coulomb friction (`Fc⁺` for q̇ > 0, `Fc⁻` for q̇ < 0) is `coulomb` + `offset` while
+//! the joint moves: `Fc⁺·[q̇>0] − Fc⁻·[q̇<0] = ½(Fc⁺+Fc⁻)·sgn q̇ + ½(Fc⁺−Fc⁻)`. At rest the offset
+//! part vanishes in the data but not in the column, so on motions with rests the pair is often
+//! not found (docs/eval.md, the extended suite). More effects: add a variant, its
 //! column in [`Effect::column`] (`column.rs`: the one implementation of its physics, used by
 //! identification, simulation and synthetic data) and its name.
 //!
