@@ -126,18 +126,23 @@ pub fn acceleration_limits(
 mod tests {
     use super::*;
 
+    /// The shipped UR5e-like URDF, imported as `import-urdf` does.
+    fn ur5e() -> crate::urdf::Imported {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/data/urdf/ur5e.urdf");
+        crate::urdf::import_file(
+            std::path::Path::new(path),
+            &crate::urdf::ImportOptions::default(),
+        )
+        .unwrap()
+    }
+
     /// On the UR5e-like URDF, each derived limit equals `(τ − max|g|)/max M_jj` with the maxima
     /// found independently: by finite differences of the inverse dynamics (`M_jj` as the torque
     /// of a unit acceleration, `g` as the torque at rest) on a fresh set of postures. The sampled
     /// maxima of two independent sets agree to 2 % (smooth functions of q on 2000 points).
     #[test]
     fn ur5e_limits_match_inverse_dynamics_on_other_postures() {
-        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/data/urdf/ur5e.urdf");
-        let imp = crate::urdf::import_file(
-            std::path::Path::new(path),
-            &crate::urdf::ImportOptions::default(),
-        )
-        .unwrap();
+        let imp = ur5e();
         let p = imp.params.full_vector();
         let n = imp.table.dof();
         let ranges: Vec<Option<(f64, f64)>> = imp
@@ -178,12 +183,7 @@ mod tests {
 
     #[test]
     fn no_effort_or_too_little_is_a_reason() {
-        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/data/urdf/ur5e.urdf");
-        let imp = crate::urdf::import_file(
-            std::path::Path::new(path),
-            &crate::urdf::ImportOptions::default(),
-        )
-        .unwrap();
+        let imp = ur5e();
         let p = imp.params.full_vector();
         let n = imp.table.dof();
         let mut effort = vec![Some(150.0); n];
