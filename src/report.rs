@@ -11,7 +11,9 @@
 //! fields plus `joint`, `effect`, `unit`), `effects_found` (`joint`, `effect`, `evidence`),
 //! `not_identifiable`, `error` (`before`/`after` × `train`/`validation`, each `per_joint` and
 //! `overall` relative RMS `‖τ̂−τ‖/‖τ‖` against the measured torque), `steps` (rigid → + effect →
-//! …), `selection`, `condition_number`, `cutoff_scan`, `command`.
+//! …), `selection`, `condition_number`, `cutoff_scan`, `guard` (per joint: the selected model
+//! against the plain fit on held-out training data, the winner, what the guard added, the weak
+//! joints; `error.plain` is the plain fit judged like `after`), `command`.
 
 use std::fmt::Write as _;
 use std::io::Write as _;
@@ -25,6 +27,7 @@ use crate::dh::DhTable;
 use crate::identify::{Errors, ModelResult, Outcome, Predictions, KEEP_RATE_PER_CUTOFF};
 use crate::io::{atomic_write, WriteError};
 
+pub mod guard;
 pub mod leave_one_out;
 pub mod physical;
 
@@ -174,6 +177,7 @@ pub fn json_report(o: &Outcome, command: &str) -> Value {
         "error": {
             "before": model_errors_json(&o.before),
             "after": model_errors_json(&o.after),
+            "plain": o.plain.as_ref().map(model_errors_json),
             "prediction": if o.after.from_states.is_some() { "low-passed (from the parallel-filtered rows); from_states: the same models' torque from the estimated states" } else { "from the estimated states" },
             "definition": "relative RMS ||tau_hat - tau|| / ||tau|| against the torque as measured in the file (unfiltered), per joint and over all joints",
         },
@@ -187,6 +191,7 @@ pub fn json_report(o: &Outcome, command: &str) -> Value {
         "cutoff_scan": o.cutoff_scan,
         "estimator": "weighted least squares (per-joint 1/sigma), incremental QR, parallel zero-phase filtering of tau and regressor; std by block jackknife; then the physically consistent estimate closest to it in the same weighted metric (`physical`)",
         "physical": physical::json(o),
+        "guard": guard::json(o),
         "warnings": o.warnings,
         "fixed": o.fixed,
         "undetermined": o.undetermined,
@@ -289,6 +294,7 @@ pub fn markdown(o: &Outcome, command: &str, plots: &[String]) -> String {
         let _ = writeln!(m);
     }
     errors_section(&mut m, o);
+    guard::section(&mut m, o);
     steps_section(&mut m, o);
     evidence_section(&mut m, o);
     parameters_section(&mut m, o);
@@ -317,10 +323,15 @@ fn errors_section(m: &mut String, o: &Outcome) {
     if low_passed {
         let _ = writeln!(m, "The scan chose to predict from the parallel-filtered rows (*low-passed*): the model's torque is low-passed like the rows it was fitted to. A controller or simulator computing τ from the states sees the *from states* rows.\n");
     }
-    let models = [
+    let mut models = vec![
         ("before (declared: rigid body)", &o.before),
         ("after (augmented)", &o.after),
     ];
+    models.extend(
+        o.plain
+            .as_ref()
+            .map(|p| ("plain fit (rigid + viscous, Coulomb, offset, armature)", p)),
+    );
     model_error_table(m, n, "model", &models);
     let _ = writeln!(m);
 }

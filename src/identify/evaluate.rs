@@ -68,6 +68,21 @@ impl RawSums {
     pub fn heldout(&self, m: usize) -> f64 {
         (self.heldout[m].iter().sum::<f64>() / self.tss.iter().sum::<f64>()).sqrt()
     }
+
+    /// Held-out error of model `m` with each group of joints pooled on its own: the root of the
+    /// sum over `groups` of each group's relative mean square error (one group of every joint:
+    /// [`RawSums::heldout`]). Joints in no group are left out.
+    pub fn heldout_grouped(&self, m: usize, groups: &[Vec<usize>]) -> f64 {
+        groups
+            .iter()
+            .map(|g| {
+                let e: f64 = g.iter().map(|&j| self.heldout[m][j]).sum();
+                let t: f64 = g.iter().map(|&j| self.tss[j]).sum();
+                e / t
+            })
+            .sum::<f64>()
+            .sqrt()
+    }
 }
 
 /// Residuals of `models` against the torque as measured, over the raw samples of `files`;
@@ -237,12 +252,14 @@ pub fn raw_sums_sampled(
 /// model's leave-one-block-out parameters fitted with it (over `subsets[v]`). Per variant `(from the estimated
 /// states, from the filtered rows)` — what [`raw_sums_each`] gives each variant on its own
 /// (windows reach as far as the widest filter: the same numbers to the filters' truncation,
-/// ~1e-8).
+/// ~1e-8). Joints are pooled in `groups` ([`RawSums::heldout_grouped`]).
+#[allow(clippy::too_many_arguments)]
 pub(super) fn heldout_per_filter(
     base: &BaseModel,
     layout: &Layout,
     variants: &[&[Prepared]],
     blocks: &[usize],
+    groups: &[Vec<usize>],
     subsets: &[&[usize]],
     loo: &[&[Vec<f64>]],
 ) -> Vec<(f64, f64)> {
@@ -303,7 +320,12 @@ pub(super) fn heldout_per_filter(
         offset += nblocks;
     }
     (0..nv)
-        .map(|v| (total[2 * v].heldout(0), total[2 * v + 1].heldout(0)))
+        .map(|v| {
+            (
+                total[2 * v].heldout_grouped(0, groups),
+                total[2 * v + 1].heldout_grouped(0, groups),
+            )
+        })
         .collect()
 }
 
@@ -406,6 +428,22 @@ pub struct ModelResult {
     pub x: Vec<f64>,
 }
 
+impl ModelResult {
+    /// Every `overall` of this model over `joints` only ([`Errors::pool`]).
+    pub fn pool(&mut self, joints: &[usize]) {
+        self.train.pool(joints);
+        if let Some(v) = &mut self.validation {
+            v.pool(joints);
+        }
+        if let Some(s) = &mut self.from_states {
+            s.train.pool(joints);
+            if let Some(v) = &mut s.validation {
+                v.pool(joints);
+            }
+        }
+    }
+}
+
 /// A model's errors with its torque predicted from the estimated states.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct StateErrors {
@@ -423,6 +461,11 @@ pub struct Errors {
     pub sse: Vec<f64>,
     #[serde(skip)]
     pub tss: Vec<f64>,
+    /// The joints `overall` pools (0-based); `None` = all. An arm with joints of different
+    /// units (a prismatic joint's N, a revolute one's N·m) or with weak joints pools only the
+    /// identifiable joints of one unit ([`super::weak::pooled_joints`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub pooled_joints: Option<Vec<usize>>,
 }
 
 impl Errors {
@@ -435,7 +478,18 @@ impl Errors {
             sse.iter_mut().zip(&e.sse).for_each(|(a, b)| *a += b);
             tss.iter_mut().zip(&e.tss).for_each(|(a, b)| *a += b);
         }
-        Some(Errors::from_sums(sse, tss))
+        let mut out = Errors::from_sums(sse, tss);
+        if let Some(j) = &first.pooled_joints {
+            out.pool(j);
+        }
+        Some(out)
+    }
+
+    /// `overall` over `joints` only (see [`Errors::pooled_joints`]).
+    pub fn pool(&mut self, joints: &[usize]) {
+        let sum = |v: &[f64]| joints.iter().filter_map(|&j| v.get(j)).sum::<f64>();
+        self.overall = (sum(&self.sse) / sum(&self.tss)).sqrt();
+        self.pooled_joints = Some(joints.to_vec());
     }
 
     /// Relative RMS errors from per-joint sums of squared residuals and of squared torque.
@@ -450,6 +504,7 @@ impl Errors {
             overall: (sse.iter().sum::<f64>() / tss.iter().sum::<f64>()).sqrt(),
             sse,
             tss,
+            pooled_joints: None,
         }
     }
 }

@@ -163,6 +163,8 @@ pub(super) fn load_stage(
             stopped_on: second.stopped_on,
             collinear,
             dropped: dropped.iter().map(Term::label).collect(),
+            guarded: Vec::new(),
+            plain: Vec::new(),
         },
         declared,
     })

@@ -45,6 +45,11 @@
 //!    stage's model (`load_stage.rs`: their columns hold its torque, so the layout and problem
 //!    are rebuilt); when one is found, the scan is repeated with it in its models
 //!    ([`LoadModel`]).
+//!    No effect is searched on a weak joint (`weak.rs`: its torque sits on its resolution floor).
+//!    Then the **per-joint guard** (`guard.rs`, with `--effects auto`): the plain fit (rigid body +
+//!    viscous, Coulomb, offset, armature on every joint) is always fitted; where it predicts a
+//!    joint better on held-out training data (by run, or by block with one file), the plain terms
+//!    the search left out are added, and the verdict per joint is reported.
 //! 7. **Outcome** (`outcome.rs`, [`Outcome`]): the reported models fitted and judged, parameter
 //!    standard deviations from a block jackknife over the time blocks (honest under the
 //!    residual autocorrelation that filtering creates), reported also as %σ = 100·σ/|θ|.
@@ -53,6 +58,7 @@ pub mod base;
 mod columns;
 mod dot;
 mod evaluate;
+pub mod guard;
 pub mod identifiability;
 mod layout;
 mod load_stage;
@@ -68,9 +74,11 @@ mod rows;
 mod scan;
 mod select;
 pub mod synth;
+pub mod weak;
 
 pub use crate::progress::Progress;
 pub use evaluate::{raw_sums, Errors, Judged, ModelResult, Prediction, RawSums, StateErrors};
+pub use guard::{Guard, JointGuard};
 pub use identifiability::Undetermined;
 pub use layout::Layout;
 pub use load_stage::LoadModel;
@@ -84,6 +92,7 @@ pub use scan::{
     SCAN_PIECES, SCAN_SAMPLES,
 };
 pub use select::{select, Evidence, Rules, Selection, Step};
+pub use weak::WeakJoint;
 
 use rayon::prelude::*;
 
@@ -324,6 +333,12 @@ fn run_prepared_with(
         let e = problem.rank_error(&problem.layout.fixed);
         return Err(IdentifyError::Rank(problem::with_hint(e, train)));
     }
+    // No effect is searched on a joint whose torque is its sensor's resolution floor.
+    let weak = weak::quantised(train, base.dof());
+    let searched: Vec<Term> = searched
+        .into_iter()
+        .filter(|t| !weak.iter().any(|w| w.joint == t.joint))
+        .collect();
     let first = select::first_stage(problem, train, cfg, declared, &searched)?;
     let selected = load_stage(base, train, cfg, first)?;
     // The judging passes read the final layout's rows (the load stage's, if it rebuilt).
@@ -333,13 +348,50 @@ fn run_prepared_with(
         Some(t) => (&t[..train.len()], t.get(train.len()).or(val)),
         None => (train, val),
     };
+    // The per-joint guard against the plain fit (with `--effects auto`: a fixed list is the
+    // user's model).
+    let (selected, guard) = match cfg.effects {
+        EffectsSpec::Auto => {
+            let (s, g) = guard::guard(base, train, selected, weak.clone())
+                .map_err(|e| IdentifyError::Rank(problem::with_hint(e, train)))?;
+            (s, Some(g))
+        }
+        EffectsSpec::Fixed(_) => (selected, None),
+    };
     let mut out = outcome::assemble(arm, base, train, val, cfg, selected, &merged)?;
     out.warnings = identifiability::warnings(train, table, base.dof());
+    if let Some(g) = &guard {
+        out.warnings.extend(g.weak.iter().map(|w| w.reason.clone()));
+        out.warnings
+            .extend(g.joints.iter().filter_map(|j| j.cause.clone()));
+    }
+    let weak = guard.as_ref().map_or(weak, |g| g.weak.clone());
+    if let Some(joints) = weak::pooled_joints(table, base.dof(), &weak) {
+        pool_overall(&mut out, &joints);
+    }
+    out.guard = guard;
     out.warnings
         .extend(identifiability::fixed_warning(&out.fixed));
     out.warnings
         .extend(identifiability::undetermined_warning(&out.undetermined));
     Ok(out)
+}
+
+/// Every overall error of `out` over `joints` only (see [`weak::pooled_joints`]).
+fn pool_overall(out: &mut Outcome, joints: &[usize]) {
+    for m in [&mut out.before, &mut out.after]
+        .into_iter()
+        .chain(out.plain.as_mut())
+        .chain(out.consistent.as_mut())
+    {
+        m.pool(joints);
+    }
+    for s in &mut out.steps {
+        s.train.pool(joints);
+        if let Some(v) = &mut s.validation {
+            v.pool(joints);
+        }
+    }
 }
 
 /// Leave-one-file-out study: each file in turn is the validation file, the others the training
@@ -402,6 +454,16 @@ pub fn pooled_validation_from_states(
         Some(s) => s.validation.as_ref(),
         None => r.validation.as_ref(),
     })
+}
+
+/// The plain fit's validation errors pooled like [`pooled_validation`] (when every fold has
+/// one: `--effects auto`).
+pub fn pooled_plain_validation(outcomes: &[Outcome]) -> Option<Errors> {
+    let parts: Option<Vec<&Errors>> = outcomes
+        .iter()
+        .map(|o| o.plain.as_ref().and_then(|p| p.validation.as_ref()))
+        .collect();
+    Errors::pooled(parts?)
 }
 
 fn pooled(

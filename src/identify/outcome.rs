@@ -129,6 +129,11 @@ pub struct Outcome {
     /// Parameters whose one-σ uncertainty moves the prediction by more than the residual
     /// ([`super::identifiability::torque_sigma`]).
     pub undetermined: Vec<Undetermined>,
+    /// The plain fit (rigid + viscous, Coulomb, offset, armature on every joint) judged like
+    /// `after`, when the guard ran.
+    pub plain: Option<ModelResult>,
+    /// The per-joint guard against the plain fit, and the weak joints (`--effects auto`).
+    pub guard: Option<super::guard::Guard>,
 }
 
 /// Stage 7: the outcome of an identification whose effects are selected (`selected`, the
@@ -171,6 +176,7 @@ pub(super) fn assemble(
     let Judgement {
         before,
         after,
+        plain,
         consistent,
         steps,
         series,
@@ -243,6 +249,8 @@ pub(super) fn assemble(
             .map(|&c| layout.base_names[c].clone())
             .collect(),
         undetermined,
+        plain,
+        guard: None,
     })
 }
 
@@ -251,6 +259,7 @@ pub(super) fn assemble(
 struct Judgement {
     before: ModelResult,
     after: ModelResult,
+    plain: Option<ModelResult>,
     consistent: Option<ModelResult>,
     steps: Vec<StepRow>,
     series: Series,
@@ -289,11 +298,18 @@ impl Models {
         for s in &selection.steps {
             added.push(vec![s.added]);
         }
+        if !selection.guarded.is_empty() {
+            added.push(selection.guarded.clone());
+        }
         let mut terms: Vec<Vec<Term>> = vec![Vec::new(), selection.terms.clone()];
         let mut acc_terms: Vec<Term> = Vec::new();
         for add in &added {
             acc_terms.extend(add.iter().copied());
             terms.push(acc_terms.clone());
+        }
+        // The plain fit last, when the guard compared with it.
+        if !selection.plain.is_empty() {
+            terms.push(selection.plain.clone());
         }
         let fitted: Vec<Fitted> = terms
             .iter()
@@ -317,6 +333,12 @@ impl Models {
             terms,
             fitted,
         })
+    }
+
+    /// The plain fit's place among the models, when there is one (last; judged from the states
+    /// too, like the rigid and the final model).
+    fn plain(&self) -> Option<usize> {
+        (self.terms.len() > 2 + self.added.len()).then(|| self.terms.len() - 1)
     }
 
     /// The fits to judge, each set of columns once (the final model is the step table's last
@@ -460,8 +482,9 @@ impl Models {
         });
         let train_sums = train_each.remove(0);
         let val_sums = val_each.map(|mut v| v.remove(0));
+        let plain_slot = self.plain().map(|m| slot[m]);
         let from_states = |m: usize| {
-            states.iter().position(|&s| s == m)?;
+            (states.contains(&m) || plain_slot == Some(m)).then_some(())?;
             let (t, v) = state_sums.as_ref()?;
             Some(StateErrors {
                 train: t.errors(m),
@@ -492,9 +515,11 @@ impl Models {
             }
         });
         let steps = self.step_rows(&before, result);
+        let plain = self.plain().map(result);
         Ok(Judgement {
             before,
             after,
+            plain,
             consistent,
             steps,
             series,

@@ -199,6 +199,39 @@ impl Problem {
             .collect()
     }
 
+    /// Parameters fitted without each training file, one set per block (every block of a file
+    /// gets the fit without that file): cross-validation by run. An error when a fit without
+    /// one file is rank-deficient (that file alone excites some column).
+    pub fn lofo_fits(&self, subset: &[usize], w: &[f64]) -> Result<Vec<Vec<f64>>, RankError> {
+        let n = self.layout.dof;
+        let mut out = Vec::with_capacity(self.blocks());
+        let mut start = 0;
+        for &nb in &self.file_blocks {
+            let accs: Vec<Accumulator> = (0..n)
+                .map(|j| {
+                    let mut a = self.blocks[0][j].empty_like();
+                    for (b, blk) in self.blocks.iter().enumerate() {
+                        if !(start..start + nb).contains(&b) {
+                            a.merge(&blk[j]);
+                        }
+                    }
+                    a
+                })
+                .collect();
+            let f: Vec<(&DMatrix<f64>, f64)> =
+                accs.iter().zip(w).map(|(a, &w)| (a.r(), w)).collect();
+            let (x, _) = ls::solve_x(&f, subset).map_err(|e| self.rank_error(&e.dependent))?;
+            out.extend(std::iter::repeat_n(x, nb));
+            start += nb;
+        }
+        Ok(out)
+    }
+
+    /// Training files.
+    pub fn files(&self) -> usize {
+        self.file_blocks.len()
+    }
+
     /// The factors of all blocks but `b`, weighted by `w`.
     fn loo_factors(&self, b: usize, w: &[f64]) -> Vec<(&DMatrix<f64>, f64)> {
         self.loo[b].iter().zip(w).map(|(r, &w)| (r, w)).collect()

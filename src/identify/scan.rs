@@ -94,7 +94,8 @@ pub struct FilterChoice {
 /// [`Smoothing`] (regression filter at 1 or ½ of the cut-off, predictions from the filtered
 /// rows or from the states), and the combination with the smallest held-out error against the
 /// measured torque wins (rigid model plus every candidate effect, leave-one-block-out, the same
-/// samples for every trial). Too low a cut-off distorts the motion; too high a one lets noise
+/// samples for every trial; each unit's joints pooled on their own, weak joints left out:
+/// [`super::weak::unit_groups`]). Too low a cut-off distorts the motion; too high a one lets noise
 /// and vibration into q̈, which biases least squares towards zero — the scan sees both.
 pub fn choose_cutoff(
     base: &BaseModel,
@@ -146,6 +147,10 @@ pub fn choose_cutoff(
         .collect();
     let scan_files: Vec<Prepared> = scan_files.into_iter().collect::<Result<_, _>>()?;
     let all: Vec<Term> = layout.terms.clone();
+    // Each unit's joints pooled on their own and weak joints left out, as the reports do: a
+    // prismatic joint's newtons would otherwise choose the cut-off for the arm's newton-metres.
+    let weak = super::weak::quantised(&first, base.dof());
+    let groups = super::weak::unit_groups(table, base.dof(), &weak);
     let scan = Scan {
         base,
         layout: &layout,
@@ -156,6 +161,7 @@ pub fn choose_cutoff(
         ratios: &ratios,
         modes: &modes,
         grids: &cache.grids,
+        groups,
     };
     let what = if load.is_some() {
         "cut-off scan again, with the load-dependent friction found"
@@ -199,6 +205,8 @@ struct Scan<'a> {
     modes: &'a [bool],
     /// The files' states and base regressor per cut-off, shared with other scans of them.
     grids: &'a GridBaseCache,
+    /// Joints pooled together in the held-out error ([`super::weak::unit_groups`]).
+    groups: Vec<Vec<usize>>,
 }
 
 impl Scan<'_> {
@@ -276,7 +284,15 @@ impl Scan<'_> {
         let variants: Vec<&[Prepared]> = fitted.iter().map(|f| f.files.as_slice()).collect();
         let subsets: Vec<&[usize]> = fitted.iter().map(|f| f.subset.as_slice()).collect();
         let loo: Vec<&[Vec<f64>]> = fitted.iter().map(|f| f.loo.as_slice()).collect();
-        let errors = heldout_per_filter(self.base, self.layout, &variants, first, &subsets, &loo);
+        let errors = heldout_per_filter(
+            self.base,
+            self.layout,
+            &variants,
+            first,
+            &self.groups,
+            &subsets,
+            &loo,
+        );
         let mut out = Vec::new();
         for (RatioFit { ratio, .. }, (states, filtered)) in fitted.iter().zip(errors) {
             for (mode, e) in [(false, states), (true, filtered)] {
@@ -496,7 +512,15 @@ mod tests {
             .iter()
             .zip(&fb.1)
             .any(|(u, v)| (u - v).abs() > 1e-6 * u.abs()));
-        let both = heldout_per_filter(&base, &layout, &[&a, &b], &blocks, &[&sa, &sb], &[&la, &lb]);
+        let both = heldout_per_filter(
+            &base,
+            &layout,
+            &[&a, &b],
+            &blocks,
+            &[vec![0, 1]],
+            &[&sa, &sb],
+            &[&la, &lb],
+        );
         // Windows of other margins: the filters' truncation (~1.5e-8 of the signal) and the
         // states' windows (~1e-7 of its range, estimator.rs) bound the difference.
         let close = |u: f64, v: f64| (u - v).abs() <= 1e-7 * u.abs().max(v.abs());

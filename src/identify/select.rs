@@ -99,6 +99,10 @@ pub struct Selection {
     /// Effects added in the first stage that stood in for a load-dependent one and no longer
     /// pass the test once it is in the model (removed).
     pub dropped: Vec<String>,
+    /// Plain-fit terms the per-joint guard added (in `terms` too; see [`super::guard`]).
+    pub guarded: Vec<Term>,
+    /// The plain fit's terms the guard compared with (empty without the guard).
+    pub plain: Vec<Term>,
 }
 
 /// What effect selection hands on: the problem (and its layout) the final model's columns are
@@ -129,6 +133,8 @@ pub(super) fn first_stage(
             stopped_on: None,
             collinear: Vec::new(),
             dropped: Vec::new(),
+            guarded: Vec::new(),
+            plain: Vec::new(),
         },
     };
     Ok(Selected {
@@ -235,6 +241,8 @@ pub fn select(
         stopped_on,
         collinear,
         dropped: Vec::new(),
+        guarded: Vec::new(),
+        plain: Vec::new(),
     })
 }
 

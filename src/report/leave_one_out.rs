@@ -7,7 +7,9 @@ use std::path::Path;
 
 use super::ReportError;
 use crate::dh::DhTable;
-use crate::identify::{pooled_validation, pooled_validation_from_states, Errors, Outcome};
+use crate::identify::{
+    pooled_plain_validation, pooled_validation, pooled_validation_from_states, Errors, Outcome,
+};
 use crate::io::atomic_write;
 
 /// Writes the study's reports into `dir` (each fold's, then the summary); returns the summary
@@ -84,6 +86,20 @@ pub fn write(
             );
         }
     }
+    let plain = pooled_plain_validation(outs);
+    if let (Some((_, a, _)), Some(p)) = (&pooled, &plain) {
+        let _ = writeln!(md, "\nPer joint, pooled over the held-out files: the selected model against the plain fit (rigid + viscous, Coulomb, offset, armature on every joint, one least-squares solve), each with the prediction its fold chose.\n\n| joint | selected | plain | selected / plain |\n|---|---|---|---|");
+        for (j, (s, q)) in a.per_joint.iter().zip(&p.per_joint).enumerate() {
+            let _ = writeln!(
+                md,
+                "| {} | {:.2} % | {:.2} % | {:.3} |",
+                j + 1,
+                100.0 * s,
+                100.0 * q,
+                s / q
+            );
+        }
+    }
     let states = pooled_validation_from_states(outs);
     if let Some((b, a, c)) = &states {
         let _ = writeln!(md, "\nThe same, every model's torque predicted from the estimated states (what a controller computing τ from those states would see; the table's prediction column says which one each fold chose): before {:.2} %, after {:.2} %{}.", 100.0 * b.overall, 100.0 * a.overall, c.as_ref().map_or(String::new(), |c| format!(", consistent {:.2} %", 100.0 * c.overall)));
@@ -91,7 +107,7 @@ pub fn write(
     let both = |p: Option<(Errors, Errors, Option<Errors>)>| {
         p.map(|(b, a, c)| serde_json::json!({"before": b, "after": a, "consistent": c}))
     };
-    let json = serde_json::json!({"folds": rows, "pooled": both(pooled), "pooled_from_states": both(states), "command": command});
+    let json = serde_json::json!({"folds": rows, "pooled": both(pooled), "pooled_from_states": both(states), "pooled_plain": plain, "command": command});
     // Each fold's report on its own thread (they share nothing).
     reports
         .par_iter()

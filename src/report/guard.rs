@@ -1,0 +1,140 @@
+//! The per-joint guard's section of `report.md` and its `report.json` value: per joint, the
+//! selected model against the plain fit on held-out training data (and on the validation file
+//! when there is one), which won and by how much, what the guard added, the weak joints.
+
+use std::fmt::Write as _;
+
+use serde_json::{json, Value};
+
+use crate::identify::Outcome;
+
+fn pct(v: f64) -> String {
+    if v.is_finite() {
+        format!("{:.2} %", 100.0 * v)
+    } else {
+        "—".into()
+    }
+}
+
+/// `report.json`'s `guard` (null without one).
+pub fn json(o: &Outcome) -> Value {
+    let Some(g) = &o.guard else {
+        return Value::Null;
+    };
+    let val = |r: Option<&crate::identify::ModelResult>, j: usize| {
+        r.and_then(|r| r.validation.as_ref())
+            .and_then(|v| v.per_joint.get(j).copied())
+    };
+    let joints: Vec<Value> = g
+        .joints
+        .iter()
+        .map(|jg| {
+            let mut v = serde_json::to_value(jg).unwrap_or(Value::Null);
+            v["joint"] = json!(jg.joint + 1);
+            v["validation_selected"] = json!(val(Some(&o.after), jg.joint));
+            v["validation_plain"] = json!(val(o.plain.as_ref(), jg.joint));
+            v
+        })
+        .collect();
+    let weak: Vec<Value> = g
+        .weak
+        .iter()
+        .map(|w| {
+            let mut v = serde_json::to_value(w).unwrap_or(Value::Null);
+            v["joint"] = json!(w.joint + 1);
+            v
+        })
+        .collect();
+    json!({
+        "cross_validation": g.cross_validation,
+        "definition": "per joint relative RMS ||tau_hat - tau|| / ||tau|| against the measured torque, each training file predicted by the fit without it (cross_validation = run) or each time block by the fit without it (block); selected = the model --effects auto chose, after the guard's additions",
+        "plain_terms": g.plain_terms,
+        "plain_collinear": g.plain_collinear,
+        "fixes": g.fixes,
+        "joints": joints,
+        "weak_joints": weak,
+        "overall_pools_joints": o.after.train.pooled_joints.as_ref().map(|j| j.iter().map(|j| j + 1).collect::<Vec<_>>()),
+    })
+}
+
+/// The section (nothing without a guard).
+pub fn section(m: &mut String, o: &Outcome) {
+    let Some(g) = &o.guard else {
+        return;
+    };
+    let _ = writeln!(
+        m,
+        "## Per joint: the selected model against the plain fit\n"
+    );
+    let by = if g.cross_validation == "run" {
+        "each training file predicted by the fit without it"
+    } else {
+        "each time block predicted by the fit without it"
+    };
+    let _ = writeln!(
+        m,
+        "The plain fit is the rigid body plus {} (one least-squares solve{}). Held out: {by}; relative RMS against the measured torque, each joint on its own scale. Where the plain fit predicted a joint better, the guard added the plain terms the search had left out on that joint (module docs of `identify::guard`).\n",
+        g.plain_terms.join(", "),
+        if g.plain_collinear.is_empty() {
+            String::new()
+        } else {
+            format!(
+                "; {} left out: collinear with the other columns in this data",
+                g.plain_collinear.join(", ")
+            )
+        }
+    );
+    let has_val = o.after.validation.is_some() && o.plain.is_some();
+    let _ = writeln!(
+        m,
+        "| joint | selected, held-out | plain, held-out | selected / plain | winner | guard added{} |",
+        if has_val { " | selected, validation | plain, validation" } else { "" }
+    );
+    let _ = writeln!(
+        m,
+        "|---|---|---|---|---|---|{}",
+        if has_val { "---|---|" } else { "" }
+    );
+    for jg in &g.joints {
+        let j = jg.joint;
+        let val = |r: Option<&crate::identify::ModelResult>| {
+            r.and_then(|r| r.validation.as_ref())
+                .and_then(|v| v.per_joint.get(j).copied())
+                .map_or("—".into(), pct)
+        };
+        let _ = writeln!(
+            m,
+            "| {} | {} | {} | {:.3} | {} | {}{} |",
+            j + 1,
+            pct(jg.selected),
+            pct(jg.plain),
+            jg.ratio,
+            jg.winner,
+            if jg.added.is_empty() {
+                "—".into()
+            } else {
+                jg.added.join(", ")
+            },
+            if has_val {
+                format!(" | {} | {}", val(Some(&o.after)), val(o.plain.as_ref()))
+            } else {
+                String::new()
+            }
+        );
+    }
+    for f in &g.fixes {
+        let _ = writeln!(m, "\nGuard: {f}.");
+    }
+    if let Some(p) = &o.after.train.pooled_joints {
+        let names: Vec<String> = p.iter().map(|j| (j + 1).to_string()).collect();
+        let _ = writeln!(
+            m,
+            "\nThe overall errors in this report pool joints {} only: the others are weak or in another unit (each is in its own column).",
+            names.join(", ")
+        );
+    }
+    for w in &g.weak {
+        let _ = writeln!(m, "\nNot identifiable — {}.", w.reason);
+    }
+    let _ = writeln!(m);
+}
