@@ -201,7 +201,8 @@ fn dfki_short_training_set_is_made_physical() {
     let states = c["from_states"]["validation"]["per_joint"]
         .as_array()
         .unwrap();
-    let found: Vec<String> = r["effects_found"]
+    // Every effect of the model: the search's and the per-joint guard's additions.
+    let found: Vec<String> = r["effects"]
         .as_array()
         .unwrap()
         .iter()
