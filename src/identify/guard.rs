@@ -11,10 +11,16 @@
 //! terms every geared joint has: on the TIAGo, `coulomb3` removed 73 % of joint 3's held-out
 //! residual and was left out at t = 3.2 (needed 4.2), so joint 3 lost to the plain fit. The
 //! guard is one pre-declared comparison per joint, not a search: where the plain fit predicts a
-//! joint better, the plain terms the search left out *on that joint* are added (the joint's
-//! model then holds at least the plain one's), and the comparison is repeated. What remains
-//! after that comes from the shared rigid-body parameters (other joints' extra terms and
-//! weights move them); it is reported per joint with the margin, and as a warning.
+//! joint better — its pooled held-out error lower *and* a one-sided t-test on the per-block log
+//! ratios of the joint's held-out error passing at `Rules::guard_alpha` (1 %, Bonferroni over
+//! the joints) — the plain terms the search left out *on that joint* are added, and the
+//! comparison is repeated. The test matters on short runs, where the plain fit's extra columns
+//! win held-out blocks by chance (4 s MuJoCo runs: up to 1.5× on a wrist joint at t = 2.4, and
+//! the additions raised the error on an unseen run by up to 50 %); it also leaves the TIAGo's
+//! joint 3 as it was (t = 3.18 against 3.27: the pooled 21 % lead is not consistent enough
+//! across blocks), which the report then names with its t. What remains after additions comes
+//! from the shared rigid-body parameters (other joints' extra terms and weights move them); it
+//! is reported per joint with the margin, and as a warning when significant.
 //!
 //! **Weak joints** ([`super::weak`]) are left out of the comparison; a joint whose torque the
 //! plain fit cannot predict on held-out data (error ≥ [`NOISE_ERROR`]) is reported as weak too:
@@ -24,9 +30,11 @@ use serde::Serialize;
 
 use super::base::BaseModel;
 use super::evaluate::{raw_sums, Judged, Prediction};
+use super::load_stage::reload;
+use super::ls::t_quantile;
 use super::prepare::Prepared;
 use super::problem::Problem;
-use super::select::Selected;
+use super::select::{joint_test, Selected};
 use super::weak::WeakJoint;
 use super::RankError;
 use crate::effects::{Effect, Term};
@@ -61,6 +69,13 @@ pub struct JointGuard {
     pub ratio: f64,
     /// `selected`, `plain`, `equal` (within [`TIE`]) or `not identifiable` (a weak joint).
     pub winner: String,
+    /// One-sided t statistic of the per-block log ratios (selected / plain) of the joint's
+    /// held-out error: large when the plain fit is better in block after block.
+    pub t_stat: f64,
+    /// What `t_stat` must exceed for the guard to act (`Rules::guard_alpha`, Bonferroni over the joints).
+    pub t_crit: f64,
+    /// `t_stat > t_crit`.
+    pub significant: bool,
     /// Plain terms the guard added on this joint.
     pub added: Vec<String>,
     /// Why the plain fit still wins, when it does.
@@ -72,6 +87,8 @@ pub struct JointGuard {
 pub struct Guard {
     /// `run` (leave one training file out) or `block` (leave one time block out).
     pub cross_validation: String,
+    /// Family-wise level of the per-joint test (`Rules::guard_alpha`).
+    pub alpha: f64,
     /// The plain fit's terms (structurally merged ones and those collinear in this data left
     /// out: `plain_collinear`).
     pub plain_terms: Vec<String>,
@@ -152,18 +169,19 @@ fn noisy(e_plain: &[f64], weak: &mut Vec<WeakJoint>) {
     }
 }
 
-/// Each joint's verdict: held-out errors of the final (`e_sel`) and first (`first`) selected
-/// model and of the plain fit, the terms the guard added.
+/// Each joint's verdict: held-out errors of the final and first selected model and of the
+/// plain fit (`e`), the test that the plain fit is better (`t`, per joint, and `t_crit`), the
+/// terms the guard added.
 fn verdicts(
-    e_sel: &[f64],
-    first: &[f64],
-    e_plain: &[f64],
+    (e_sel, first, e_plain): (&[f64], &[f64], &[f64]),
+    (t, t_crit): (&[f64], f64),
     added: &[Term],
     weak: &[WeakJoint],
 ) -> Vec<JointGuard> {
     (0..e_sel.len())
         .map(|j| {
             let ratio = e_sel[j] / e_plain[j];
+            let significant = t[j] > t_crit;
             let winner = if weak.iter().any(|w| w.joint == j) {
                 "not identifiable"
             } else if ratio < 1.0 - TIE {
@@ -179,12 +197,22 @@ fn verdicts(
                 .map(Term::label)
                 .collect();
             let cause = (winner == "plain").then(|| {
-                format!(
-                    "joint {}: the selected model holds every plain term{} and still predicts this joint {:.1} % worse on held-out data: the difference comes from the selected effects beyond the plain fit's, which move the rigid-body parameters the joints share",
-                    j + 1,
-                    if on_joint.is_empty() { String::new() } else { format!(" (the guard added {})", on_joint.join(", ")) },
-                    100.0 * (ratio - 1.0)
-                )
+                if significant {
+                    format!(
+                        "joint {}: the selected model holds every plain term{} and still predicts this joint {:.1} % worse on held-out data (t = {:.2} > {t_crit:.2}): the difference comes from the selected effects beyond the plain fit's, which move the rigid-body parameters the joints share",
+                        j + 1,
+                        if on_joint.is_empty() { String::new() } else { format!(" (the guard added {})", on_joint.join(", ")) },
+                        100.0 * (ratio - 1.0),
+                        t[j]
+                    )
+                } else {
+                    format!(
+                        "joint {}: the plain fit predicts this joint {:.1} % better on held-out data, a difference chance gives on this data (per-block test t = {:.2} ≤ {t_crit:.2}): no term added for it — more or longer runs would tell",
+                        j + 1,
+                        100.0 * (ratio - 1.0),
+                        t[j]
+                    )
+                }
             });
             JointGuard {
                 joint: j,
@@ -193,6 +221,9 @@ fn verdicts(
                 plain: e_plain[j],
                 ratio,
                 winner: winner.into(),
+                t_stat: t[j],
+                t_crit,
+                significant,
                 added: on_joint,
                 cause,
             }
@@ -208,9 +239,27 @@ struct Ctx<'a> {
     by_run: bool,
 }
 
+/// A model's held-out errors: pooled per joint against the measured torque (the verdict), and
+/// per leave-one-block-out block and joint on the regression rows, unweighted (the test).
+struct Heldout {
+    pooled: Vec<f64>,
+    blocks: Vec<Vec<f64>>,
+}
+
 impl Ctx<'_> {
-    fn heldout(&self, terms: &[Term]) -> Result<Vec<f64>, RankError> {
-        heldout_per_joint(self.base, self.p, self.train, terms, self.by_run)
+    fn heldout(&self, terms: &[Term]) -> Result<Heldout, RankError> {
+        let pooled = heldout_per_joint(self.base, self.p, self.train, terms, self.by_run)?;
+        let subset = self.p.subset(terms);
+        let w = self.p.weights(&subset)?;
+        let mut blocks = self.p.cv_sse(&subset, &w)?;
+        // Each model has its own joint weights: back to the torque's units, so that the
+        // per-block ratios of two models compare errors, not weights.
+        for b in &mut blocks {
+            for (e, wj) in b.iter_mut().zip(&w) {
+                *e /= wj * wj;
+            }
+        }
+        Ok(Heldout { pooled, blocks })
     }
 
     /// The plain terms for which `pick` holds that `terms` lacks, less those this data cannot
@@ -231,6 +280,22 @@ impl Ctx<'_> {
     }
 }
 
+/// The joints the plain fit predicts better: a larger pooled held-out error than the plain
+/// fit's (beyond [`TIE`]) *and* a one-sided t-test on the per-block log ratios that passes
+/// `t_crit`. Returns them and each joint's t statistic.
+fn losing(sel: &Heldout, plain: &Heldout, t_crit: f64, weak: &[usize]) -> (Vec<usize>, Vec<f64>) {
+    let n = sel.pooled.len();
+    let t: Vec<f64> = (0..n)
+        .map(|j| joint_test(&sel.blocks, &plain.blocks, j).0)
+        .collect();
+    let lose = (0..n)
+        .filter(|&j| {
+            !weak.contains(&j) && sel.pooled[j] > plain.pooled[j] * (1.0 + TIE) && t[j] > t_crit
+        })
+        .collect();
+    (lose, t)
+}
+
 fn labels(terms: &[Term]) -> String {
     terms.iter().map(Term::label).collect::<Vec<_>>().join(", ")
 }
@@ -244,71 +309,50 @@ fn joints_list(joints: &[usize]) -> String {
 }
 
 /// The guard (see the module docs) on the selected model: plain terms added where the plain fit
-/// predicts a joint better, and the verdict per joint. `weak` are the joints found weak from
-/// their raw torque; the guard adds those whose torque the plain fit cannot predict.
+/// predicts a joint significantly better, and the verdict per joint. `weak` are the joints found
+/// weak from their raw torque; the guard adds those whose torque the plain fit cannot predict.
+/// When it adds terms to a model with load-dependent effects, their columns are rebuilt from
+/// the guarded model's torque ([`reload`]), as a fixed `--effects` list of the same terms would.
 pub(super) fn guard(
     base: &BaseModel,
     train: &[Prepared],
+    (blocks, alpha): (usize, f64),
     mut selected: Selected,
     mut weak: Vec<WeakJoint>,
 ) -> Result<(Selected, Guard), RankError> {
-    let p = &selected.problem;
-    let n = p.layout.dof;
-    let (plain, collinear) = plain_terms(p);
+    let n = selected.problem.layout.dof;
+    let (plain, collinear) = plain_terms(&selected.problem);
     // By run when every fit without one file exists, else by block.
-    let mut by_run = p.files() > 1;
-    let e_plain = match heldout_per_joint(base, p, train, &plain, by_run) {
-        Ok(e) => e,
-        Err(_) if by_run => {
-            by_run = false;
-            heldout_per_joint(base, p, train, &plain, false)?
-        }
-        Err(e) => return Err(e),
-    };
-    noisy(&e_plain, &mut weak);
-    weak.sort_by_key(|w| w.joint);
-    let is_weak = |j: usize| weak.iter().any(|w| w.joint == j);
-    let mut terms = selected.selection.terms.clone();
-    let first = heldout_per_joint(base, p, train, &terms, by_run)?;
-    let mut e_sel = first.clone();
-    let ctx = Ctx {
-        base,
-        p,
-        train,
-        by_run,
-    };
-    let losing = |e: &[f64]| -> Vec<usize> {
-        (0..n)
-            .filter(|&j| !is_weak(j) && e[j] > e_plain[j] * (1.0 + TIE))
-            .collect()
-    };
-    let mut added: Vec<Term> = Vec::new();
-    let mut fixes: Vec<String> = Vec::new();
-    // First the losing joints' own plain terms (the search's missed effects), round by round.
-    for _ in 0..n {
-        let lose = losing(&e_sel);
-        let missing = ctx.addable(&terms, &plain, |t| lose.contains(&t.joint));
-        if missing.is_empty() {
-            break;
-        }
-        fixes.push(format!(
-            "the plain fit predicted joint(s) {} better on held-out data: added the plain terms the search had left out there ({})",
-            joints_list(&lose),
-            labels(&missing)
-        ));
-        terms.extend(&missing);
-        added.extend(&missing);
-        e_sel = ctx.heldout(&terms)?;
-    }
-    // Then, if a joint still loses, every other plain term: the joints share the rigid-body
-    // parameters, and a joint without its textbook terms (a weak wrist's offset and friction)
-    // leaves its residual to those shared parameters, which costs the others.
-    let lose = losing(&e_sel);
-    if !lose.is_empty() {
-        let missing = ctx.addable(&terms, &plain, |_| true);
-        if !missing.is_empty() {
+    let by_run = selected.problem.files() > 1
+        && heldout_per_joint(base, &selected.problem, train, &plain, true).is_ok();
+    let (terms, added, fixes, first, e_plain, t_crit) = {
+        let ctx = Ctx {
+            base,
+            p: &selected.problem,
+            train,
+            by_run,
+        };
+        let e_plain = ctx.heldout(&plain)?;
+        noisy(&e_plain.pooled, &mut weak);
+        weak.sort_by_key(|w| w.joint);
+        let weak_joints: Vec<usize> = weak.iter().map(|w| w.joint).collect();
+        let compared = (n - weak_joints.len()).max(1);
+        let dof_t = (ctx.p.blocks().max(2) - 1) as f64;
+        let t_crit = t_quantile(1.0 - alpha / compared as f64, dof_t);
+        let mut terms = selected.selection.terms.clone();
+        let first = ctx.heldout(&terms)?;
+        let mut e_sel = ctx.heldout(&terms)?;
+        let mut added: Vec<Term> = Vec::new();
+        let mut fixes: Vec<String> = Vec::new();
+        // First the losing joints' own plain terms (the search's missed effects), round by round.
+        for _ in 0..n {
+            let (lose, _) = losing(&e_sel, &e_plain, t_crit, &weak_joints);
+            let missing = ctx.addable(&terms, &plain, |t| lose.contains(&t.joint));
+            if missing.is_empty() {
+                break;
+            }
             fixes.push(format!(
-                "joint(s) {} still predicted worse with all their own plain terms: added the other joints' missing plain terms ({}), whose residuals otherwise move the shared rigid-body parameters",
+                "the plain fit predicted joint(s) {} better on held-out data (t > {t_crit:.2}): added the plain terms the search had left out there ({})",
                 joints_list(&lose),
                 labels(&missing)
             ));
@@ -316,15 +360,50 @@ pub(super) fn guard(
             added.extend(&missing);
             e_sel = ctx.heldout(&terms)?;
         }
-    }
-    let joints = verdicts(&e_sel, &first, &e_plain, &added, &weak);
+        // Then, if a joint still loses, every other plain term: the joints share the rigid-body
+        // parameters, and a joint without its textbook terms (a weak wrist's offset and friction)
+        // leaves its residual to those shared parameters, which costs the others.
+        let (lose, _) = losing(&e_sel, &e_plain, t_crit, &weak_joints);
+        if !lose.is_empty() {
+            let missing = ctx.addable(&terms, &plain, |_| true);
+            if !missing.is_empty() {
+                fixes.push(format!(
+                    "joint(s) {} still predicted worse with all their own plain terms: added the other joints' missing plain terms ({}), whose residuals otherwise move the shared rigid-body parameters",
+                    joints_list(&lose),
+                    labels(&missing)
+                ));
+                terms.extend(&missing);
+                added.extend(&missing);
+            }
+        }
+        (terms, added, fixes, first, e_plain, t_crit)
+    };
+    let reloaded = !added.is_empty() && terms.iter().any(|t| t.effect.needs_load());
     selected.selection.terms = terms;
-    selected.selection.guarded = added;
+    selected.selection.guarded = added.clone();
     selected.selection.plain = plain.clone();
+    if reloaded {
+        selected = reload(base, train, blocks, selected)?;
+    }
+    let ctx = Ctx {
+        base,
+        p: &selected.problem,
+        train,
+        by_run,
+    };
+    let e_sel = ctx.heldout(&selected.selection.terms)?;
+    let (_, t) = losing(&e_sel, &e_plain, t_crit, &[]);
+    let joints = verdicts(
+        (&e_sel.pooled, &first.pooled, &e_plain.pooled),
+        (&t, t_crit),
+        &added,
+        &weak,
+    );
     Ok((
         selected,
         Guard {
             cross_validation: if by_run { "run" } else { "block" }.into(),
+            alpha,
             plain_terms: plain.iter().map(Term::label).collect(),
             plain_collinear: collinear.iter().map(Term::label).collect(),
             fixes,
@@ -336,7 +415,7 @@ pub(super) fn guard(
 
 #[cfg(test)]
 mod tests {
-    use crate::effects::{Effect, Term};
+    use crate::effects::{Effect, EffectsSpec, Term};
     use crate::identify::synth::{generate, Spec};
     use crate::identify::{run, Config, Rules};
     use crate::log::Log;
@@ -431,8 +510,9 @@ mod tests {
     fn a_model_the_search_got_right_keeps_its_effects_and_its_accuracy() {
         // With the default rules the search finds joint 2's friction itself. The plain fit has
         // two more columns on joint 2 (offset, armature: zero in truth), so it may win there by
-        // noise, and the guard then adds them; either way the search's effects stay what was
-        // found, its joint-2 error was already the plain fit's to 0.1 %, and nothing is weak.
+        // noise — measured 0.03 % better, per-block t = -0.6 — which the guard's test must not
+        // take for evidence: nothing is added, the joint-2 error is the plain fit's to 0.1 %,
+        // and nothing is weak.
         let arm = crate::arms::resolve("planar2").unwrap();
         let train = Log::from(generate(&spec(6)));
         let out = run(&arm, vec![train], None, &Config::default()).unwrap();
@@ -450,7 +530,71 @@ mod tests {
             (j2.selected_before_guard / j2.plain - 1.0).abs() < 1e-3,
             "{j2:?}"
         );
-        assert!(j2.selected <= j2.plain * (1.0 + super::TIE), "{j2:?}");
+        assert!((j2.selected / j2.plain - 1.0).abs() < 1e-3, "{j2:?}");
+        assert!(!j2.significant, "{j2:?}");
+        assert!(out.selection.guarded.is_empty(), "{:?}", g.fixes);
         assert!(g.weak.is_empty(), "{:?}", g.weak);
+    }
+
+    #[test]
+    fn a_guarded_model_with_load_dependent_terms_is_the_model_its_effects_name() {
+        // The load-dependent columns hold the torque of the model's other terms. When the guard
+        // adds plain terms after the load stage, those columns must be rebuilt from the guarded
+        // model, so that the same effects given as a fixed list (a user re-running the found
+        // model) predict the same torque. The search is made to miss joint 1's small Coulomb
+        // friction (an effect must explain 0.2 % of the torque power), not joint 2's
+        // load-dependent friction; the guard then adds joint 1's plain terms.
+        let arm = crate::arms::resolve("planar2").unwrap();
+        let mut s = Spec::new(arm.dh_table().unwrap(), 48)
+            .with_effect(Effect::Coulomb, 0, 0.08)
+            .with_effect(Effect::LoadCoulomb, 1, 0.15);
+        s.duration = 20.0;
+        s.rate_hz = 200.0;
+        let train = Log::from(generate(&s));
+        let val = Log::from(generate(&Spec { seed: 49, ..s }));
+        let fixed = |effects| Config {
+            effects,
+            rules: Rules {
+                min_share: 2e-3,
+                ..Rules::default()
+            },
+            smoothing: Some(crate::identify::Smoothing::default()),
+            derivative: crate::derivative::Options {
+                cutoff_hz: Some(8.0),
+                ..Default::default()
+            },
+            ..Config::default()
+        };
+        let auto = run(
+            &arm,
+            vec![train.clone()],
+            Some(val.clone()),
+            &fixed(EffectsSpec::Auto),
+        )
+        .unwrap();
+        let terms = auto.selection.terms.clone();
+        assert!(
+            !auto.selection.guarded.is_empty(),
+            "the guard added nothing: {:?} {:?}",
+            auto.selection.terms,
+            auto.guard
+        );
+        assert!(
+            terms.iter().any(|t| t.effect.needs_load()),
+            "no load-dependent term: {terms:?}"
+        );
+        let again = run(
+            &arm,
+            vec![train],
+            Some(val),
+            &fixed(EffectsSpec::Fixed(terms)),
+        )
+        .unwrap();
+        let per_joint =
+            |o: &crate::identify::Outcome| o.after.validation.as_ref().unwrap().per_joint.clone();
+        for (a, b) in per_joint(&auto).iter().zip(per_joint(&again)) {
+            // Equal but for the order of summation.
+            assert!((a - b).abs() < 1e-9 * b, "auto {a}, fixed list {b}");
+        }
     }
 }

@@ -7,7 +7,7 @@ use super::layout::Layout;
 use super::prepare::Prepared;
 use super::problem::{with_hint, Problem};
 use super::select::{select, Rules, Selected, Selection};
-use super::{Config, IdentifyError};
+use super::{Config, IdentifyError, RankError};
 use crate::effects::{Effect, EffectsSpec, Term};
 
 /// A model's load-dependent terms and the coefficients of its torque without them, over the
@@ -166,6 +166,49 @@ pub(super) fn load_stage(
             guarded: Vec::new(),
             plain: Vec::new(),
         },
+        declared,
+    })
+}
+
+/// `selected` with its load-dependent columns rebuilt from the torque of its own first-stage
+/// terms (every term but the load-dependent ones, fitted on the same rows): what the load stage
+/// computes for a fixed `--effects` list of the same terms, so a model the guard extended after
+/// the load stage is the model its effects list names. Without load-dependent terms, unchanged.
+pub(super) fn reload(
+    base: &BaseModel,
+    train: &[Prepared],
+    blocks: usize,
+    selected: Selected,
+) -> Result<Selected, RankError> {
+    let Selected {
+        problem,
+        selection,
+        declared,
+    } = selected;
+    if !selection.terms.iter().any(|t| t.effect.needs_load()) {
+        return Ok(Selected {
+            problem,
+            selection,
+            declared,
+        });
+    }
+    let first: Vec<Term> = selection
+        .terms
+        .iter()
+        .copied()
+        .filter(|t| !t.effect.needs_load())
+        .collect();
+    let subset = problem.subset(&first);
+    let w = problem.weights(&subset)?;
+    let fit = problem.fit(&subset, &w)?;
+    let mut layout = problem.layout.clone();
+    layout.load = vec![0.0; layout.ncols()];
+    for (&c, &x) in subset.iter().zip(&fit.x) {
+        layout.load[c] = x;
+    }
+    Ok(Selected {
+        problem: Problem::build(base, layout, train, blocks),
+        selection,
         declared,
     })
 }

@@ -341,6 +341,22 @@ fn run_prepared_with(
         .collect();
     let first = select::first_stage(problem, train, cfg, declared, &searched)?;
     let selected = load_stage(base, train, cfg, first)?;
+    // The per-joint guard against the plain fit (with `--effects auto`: a fixed list is the
+    // user's model).
+    let (selected, guard) = match cfg.effects {
+        EffectsSpec::Auto => {
+            let (s, g) = guard::guard(
+                base,
+                train,
+                (cfg.blocks, cfg.rules.guard_alpha),
+                selected,
+                weak.clone(),
+            )
+            .map_err(|e| IdentifyError::Rank(problem::with_hint(e, train)))?;
+            (s, Some(g))
+        }
+        EffectsSpec::Fixed(_) => (selected, None),
+    };
     // The judging passes read the final layout's rows (the load stage's, if it rebuilt).
     let all: Vec<Prepared> = train.iter().chain(val).cloned().collect();
     let retabled = row_table::RowTable::attach(base, &selected.problem.layout, &all, grids);
@@ -348,22 +364,16 @@ fn run_prepared_with(
         Some(t) => (&t[..train.len()], t.get(train.len()).or(val)),
         None => (train, val),
     };
-    // The per-joint guard against the plain fit (with `--effects auto`: a fixed list is the
-    // user's model).
-    let (selected, guard) = match cfg.effects {
-        EffectsSpec::Auto => {
-            let (s, g) = guard::guard(base, train, selected, weak.clone())
-                .map_err(|e| IdentifyError::Rank(problem::with_hint(e, train)))?;
-            (s, Some(g))
-        }
-        EffectsSpec::Fixed(_) => (selected, None),
-    };
     let mut out = outcome::assemble(arm, base, train, val, cfg, selected, &merged)?;
     out.warnings = identifiability::warnings(train, table, base.dof());
     if let Some(g) = &guard {
         out.warnings.extend(g.weak.iter().map(|w| w.reason.clone()));
-        out.warnings
-            .extend(g.joints.iter().filter_map(|j| j.cause.clone()));
+        out.warnings.extend(
+            g.joints
+                .iter()
+                .filter(|j| j.significant)
+                .filter_map(|j| j.cause.clone()),
+        );
     }
     let weak = guard.as_ref().map_or(weak, |g| g.weak.clone());
     if let Some(joints) = weak::pooled_joints(table, base.dof(), &weak) {

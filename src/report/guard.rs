@@ -47,7 +47,8 @@ pub fn json(o: &Outcome) -> Value {
         .collect();
     json!({
         "cross_validation": g.cross_validation,
-        "definition": "per joint relative RMS ||tau_hat - tau|| / ||tau|| against the measured torque, each training file predicted by the fit without it (cross_validation = run) or each time block by the fit without it (block); selected = the model --effects auto chose, after the guard's additions",
+        "definition": "per joint relative RMS ||tau_hat - tau|| / ||tau|| against the measured torque, each training file predicted by the fit without it (cross_validation = run) or each time block by the fit without it (block); selected = the model --effects auto chose, after the guard's additions; t_stat = one-sided t statistic of the per-block log ratios (selected / plain) of the joint's leave-one-block-out error on the regression rows; the guard adds a joint's missing plain terms only when the plain fit is better pooled and t_stat > t_crit (level alpha, Bonferroni over the joints)",
+        "alpha": g.alpha,
         "plain_terms": g.plain_terms,
         "plain_collinear": g.plain_collinear,
         "fixes": g.fixes,
@@ -73,8 +74,10 @@ pub fn section(m: &mut String, o: &Outcome) {
     };
     let _ = writeln!(
         m,
-        "The plain fit is the rigid body plus {} (one least-squares solve{}). Held out: {by}; relative RMS against the measured torque, each joint on its own scale. Where the plain fit predicted a joint better, the guard added the plain terms the search had left out on that joint (module docs of `identify::guard`).\n",
+        "The plain fit is the rigid body plus {} (one least-squares solve{}). Held out: {by}; relative RMS against the measured torque, each joint on its own scale. Where the plain fit predicted a joint better — in the pooled error and block after block (t: one-sided t-test on the per-block log ratios, selected / plain; it acts above {:.2}, family level {} % over the joints) — the guard added the plain terms the search had left out on that joint (module docs of `identify::guard`).\n",
         g.plain_terms.join(", "),
+        g.joints.first().map_or(f64::NAN, |j| j.t_crit),
+        100.0 * g.alpha,
         if g.plain_collinear.is_empty() {
             String::new()
         } else {
@@ -87,12 +90,12 @@ pub fn section(m: &mut String, o: &Outcome) {
     let has_val = o.after.validation.is_some() && o.plain.is_some();
     let _ = writeln!(
         m,
-        "| joint | selected, held-out | plain, held-out | selected / plain | winner | guard added{} |",
+        "| joint | selected, held-out | plain, held-out | selected / plain | t | winner | guard added{} |",
         if has_val { " | selected, validation | plain, validation" } else { "" }
     );
     let _ = writeln!(
         m,
-        "|---|---|---|---|---|---|{}",
+        "|---|---|---|---|---|---|---|{}",
         if has_val { "---|---|" } else { "" }
     );
     for jg in &g.joints {
@@ -104,11 +107,12 @@ pub fn section(m: &mut String, o: &Outcome) {
         };
         let _ = writeln!(
             m,
-            "| {} | {} | {} | {:.3} | {} | {}{} |",
+            "| {} | {} | {} | {:.3} | {:.2} | {} | {}{} |",
             j + 1,
             pct(jg.selected),
             pct(jg.plain),
             jg.ratio,
+            jg.t_stat,
             jg.winner,
             if jg.added.is_empty() {
                 "—".into()
