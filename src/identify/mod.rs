@@ -63,6 +63,7 @@ mod predict;
 mod prepare;
 mod problem;
 mod regress;
+pub mod residual_map;
 mod row_table;
 mod rows;
 mod scan;
