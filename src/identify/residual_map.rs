@@ -130,6 +130,16 @@ pub struct ResidualMap {
     pub note: Option<String>,
 }
 
+/// Every joint's maps of one identification: the final model's training residual at every
+/// `every`-th used raw sample of each training file (`samples` in all), per joint one map per
+/// [`Variable::ALL`], joint by joint.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct ResidualMaps {
+    pub every: usize,
+    pub samples: usize,
+    pub maps: Vec<ResidualMap>,
+}
+
 /// The residual `r` against a continuous variable `x`: [`BINS`] equal-count bins (ties kept in
 /// one bin; one bin when `x` does not vary). `at[i]` is sample `i`'s (file, position in
 /// samples), the samples in time order; non-finite samples are left out.
@@ -233,14 +243,18 @@ fn summarise(
     }
     let mean: Vec<f64> = acc.iter().map(|a| a.sr / a.n as f64).collect();
     // The residual about the bin means, and its variance per bin.
-    let dev = |i: usize| assign[i].map(|b| r[i] - mean[b]);
+    let dev: Vec<Option<f64>> = assign
+        .iter()
+        .zip(r)
+        .map(|(b, r)| b.map(|b| r - mean[b]))
+        .collect();
     let mut ss = vec![0.0; count];
-    for i in 0..r.len() {
-        if let (Some(b), Some(d)) = (assign[i], dev(i)) {
-            ss[b] += d * d;
+    for (b, d) in assign.iter().zip(&dev) {
+        if let (Some(b), Some(d)) = (b, d) {
+            ss[*b] += d * d;
         }
     }
-    let rho = lag1(r.len(), dev, at);
+    let rho = lag1(&dev, at);
     let n_eff = bin_n_eff(assign, count, at, rho);
     let (mut chi2, mut dof) = (0.0, 0);
     let mut bins = Vec::new();
@@ -288,18 +302,17 @@ fn summarise(
     }
 }
 
-/// Lag-1 autocorrelation of `d(i)` (samples `0..len`, `None` left out) over pairs of
+/// Lag-1 autocorrelation of `d` (`None` left out; `at` as in [`quantile_map`]) over pairs of
 /// consecutive positions in one file, clamped to `[0, 1)` (a negative one would narrow the band).
-pub fn lag1(len: usize, d: impl Fn(usize) -> Option<f64>, at: &[(usize, u64)]) -> f64 {
+pub fn lag1(d: &[Option<f64>], at: &[(usize, u64)]) -> f64 {
     let (mut num, mut den) = (0.0, 0.0);
     let mut prev: Option<(usize, u64, f64)> = None;
-    for i in 0..len {
-        let Some(v) = d(i) else {
+    for (&v, &(f, t)) in d.iter().zip(at) {
+        let Some(v) = v else {
             prev = None;
             continue;
         };
         den += v * v;
-        let (f, t) = at[i];
         if let Some((pf, pt, pv)) = prev {
             if pf == f && t == pt + 1 {
                 num += v * pv;
