@@ -424,11 +424,10 @@ impl Models {
             .chain(consistent.map(|_| consistent_slot))
             .collect();
         // The same passes collect the plot series (rigid and final model), the residual maps'
-        // samples and, of the validation file, every sample for the predictions table (and its
-        // plot).
+        // samples and, of the validation file, every sample for the predictions table and plot.
         let (train_stride, val_stride, map_stride) = series_strides(train, val);
-        let t0 = train.iter().map(|p| p.log.t(0)).collect();
-        let mut train_samples = TrainSamples::new(layout.dof, t0, map_stride);
+        let t0 = train.iter().map(|p| p.log.t(0));
+        let mut train_samples = TrainSamples::new(layout.dof, t0.collect(), map_stride);
         let mut train_each = raw_sums_sampled(
             base,
             layout,

@@ -4,10 +4,10 @@
 //! the bin means against zero ([`ResidualMap::p_value`]): where the means leave zero beyond their
 //! bands, the model misses something that depends on that variable.
 //!
-//! What is binned (see [`super::outcome`]): the **final model's** residual on the **training**
-//! samples — the same prediction as the residual-vs-velocity plot, at every `every`-th used raw
-//! sample. It is a diagnostic for the user, not the effect search's test: the search
-//! ([`super::select`]) judges each candidate by its *held-out* gain over time blocks, and these
+//! What is binned ([`super::Outcome::residual_maps`]): the **final model's** residual on the
+//! **training** samples — the same prediction as the residual-vs-velocity plot, at every
+//! `every`-th used raw sample. It is a diagnostic for the user, not the effect search's test: the search
+//! ([`super::select()`]) judges each candidate by its *held-out* gain over time blocks, and these
 //! in-sample bins of the fitted model are not what it tests (a fitted effect's own signature is
 //! already projected out of them).
 //!

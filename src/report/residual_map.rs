@@ -1,5 +1,5 @@
 //! The residual maps in the report ([`crate::identify::residual_map`]): `report.json`'s
-//! `residual_maps` and `residual_maps_info` ([`json`]), one small-multiples SVG per joint
+//! `residual_maps` and `residual_maps_info` ([`json()`]), one small-multiples SVG per joint
 //! ([`plot`]) and the `report.md` section that links them ([`section`]).
 
 use std::fmt::Write as _;
