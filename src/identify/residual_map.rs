@@ -343,7 +343,9 @@ pub fn bin_n_eff(
     for (b, &(f, t)) in assign.iter().zip(at) {
         let Some(b) = *b else { continue };
         let a = match last[b] {
-            Some((lf, lt, la)) if lf == f && rho > 0.0 => rho.powf((t - lt) as f64) * (la + 1.0),
+            Some((lf, lt, la)) if lf == f && rho > 0.0 => {
+                rho.powf(t.abs_diff(lt) as f64) * (la + 1.0)
+            }
             _ => 0.0,
         };
         n[b] += 1;

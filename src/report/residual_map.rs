@@ -65,7 +65,7 @@ pub fn section(m: &mut String, o: &Outcome) {
         "The final model's torque residual (measured − predicted) on the training data ({} samples{}) binned per joint against q, dq/dt (signed), d2q/dt2, time since the start of its file, the file (run) and the joint's own predicted torque: each dot is a bin's mean residual, the shaded band its 95 % confidence interval (widened for the residual's autocorrelation), so a run of dots whose band stays off the zero line is torque the model does not explain as a function of that variable. These maps are a diagnostic of the fitted model on its own training data; the effect search did not test them — it added effects by their held-out gain over time blocks (above). Tables in `report.json` (`residual_maps`).\n",
         r.samples,
         if r.every > 1 {
-            format!(", every {}th used sample", r.every)
+            format!(", one in every {} used samples", r.every)
         } else {
             String::new()
         }
