@@ -13,7 +13,13 @@
 //! `overall` relative RMS `‖τ̂−τ‖/‖τ‖` against the measured torque), `steps` (rigid → + effect →
 //! …), `selection`, `condition_number`, `cutoff_scan`, `guard` (per joint: the selected model
 //! against the plain fit on held-out training data, the winner, what the guard added, the weak
-//! joints; `error.plain` is the plain fit judged like `after`), `command`.
+//! joints; `error.plain` is the plain fit judged like `after`), `command`; `residual_maps` (per
+//! joint and variable — `q`, `dq`, `ddq`, `time` since the file's start, `run`, `tau_hat` the
+//! joint's predicted torque — the final model's training residual binned: `joint`, `variable`,
+//! `unit`, `bins` (`lo`, `hi`, `centre`, `n`, `mean`, `std`, `n_eff`, `ci95_lo`, `ci95_hi`),
+//! `rho`, `n_eff_factor`, `chi2`, `dof`, `p_value`, `note`) and `residual_maps_info` (what was
+//! binned, every how many samples, how the bands and the test are made; [`residual_map`]). The
+//! maps are a diagnostic of the fitted model, not what the effect search tested (held-out gains).
 
 use std::fmt::Write as _;
 use std::io::Write as _;
@@ -30,6 +36,7 @@ use crate::io::{atomic_write, WriteError};
 pub mod guard;
 pub mod leave_one_out;
 pub mod physical;
+pub mod residual_map;
 
 /// Why a report could not be written.
 #[derive(Debug, thiserror::Error)]
@@ -62,6 +69,11 @@ pub fn write(
             (name, residual_plot as Render, j)
         })
         .collect();
+    if !o.residual_maps.maps.is_empty() {
+        wanted.extend(
+            (0..o.dof).map(|j| (residual_map::file_name(j), residual_map::plot as Render, j)),
+        );
+    }
     if o.validate.is_some() {
         wanted.extend((0..o.dof).map(|j| {
             let name = format!("validation_joint{}.svg", j + 1);
@@ -164,6 +176,7 @@ pub fn json_report(o: &Outcome, command: &str) -> Value {
             })
         })
         .collect();
+    let (maps, maps_info) = residual_map::json(o);
     json!({
         "arm": o.arm,
         "dof": o.dof,
@@ -195,6 +208,8 @@ pub fn json_report(o: &Outcome, command: &str) -> Value {
         "warnings": o.warnings,
         "fixed": o.fixed,
         "undetermined": o.undetermined,
+        "residual_maps": maps,
+        "residual_maps_info": maps_info,
         "command": command,
     })
 }
@@ -300,8 +315,10 @@ pub fn markdown(o: &Outcome, command: &str, plots: &[String]) -> String {
     parameters_section(&mut m, o);
     physical::section(&mut m, o);
     data_section(&mut m, o);
+    residual_map::section(&mut m, o);
     let _ = writeln!(m, "\n## Plots\n");
-    for p in plots {
+    // The residual maps are linked in their own section.
+    for p in plots.iter().filter(|p| !p.starts_with("residual_map_")) {
         let _ = writeln!(m, "![{p}]({p})\n");
     }
     if o.predictions.is_some() {

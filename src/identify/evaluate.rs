@@ -120,20 +120,22 @@ pub fn raw_sums_each(
         models,
         predictions,
         None,
-        &mut |_| {},
+        &mut |_, _| {},
     )
 }
 
-/// Samples asked of [`raw_sums_sampled`]: every `stride`-th used raw sample of each file with
-/// the chosen predictions of the (full-data) `models`.
+/// Samples asked of [`raw_sums_sampled`]: every `stride`-th used raw sample of each file (and,
+/// when `map_stride` is given, every `map_stride`-th too) with the chosen predictions of the
+/// (full-data) `models`.
 #[derive(Debug, Clone, Copy)]
 pub struct Sampling<'a> {
     pub stride: usize,
+    pub map_stride: Option<usize>,
     pub models: &'a [usize],
 }
 
 /// [`raw_sums_each`], handing `sink` in the same pass the samples `sampling` asks for (see
-/// [`super::predict::Predicted::push_samples`]): files in order, each file's samples in order,
+/// [`super::predict::Predicted::push_samples`]) with their file's index: files in order, each file's samples in order,
 /// a few chunks' at a time (memory stays that of a few chunks whatever the files' length).
 #[allow(clippy::too_many_arguments)]
 pub fn raw_sums_sampled(
@@ -144,7 +146,7 @@ pub fn raw_sums_sampled(
     models: &[Judged],
     predictions: &[Prediction],
     sampling: Option<Sampling>,
-    sink: &mut dyn FnMut(&[f64]),
+    sink: &mut dyn FnMut(usize, &[f64]),
 ) -> Vec<RawSums> {
     let n = layout.dof;
     let batch = match sampling {
@@ -183,9 +185,9 @@ pub fn raw_sums_sampled(
             })
             .collect();
         // The sets whose samples are collected, in the pass of the chosen prediction.
-        let sampled: Option<(usize, Vec<usize>)> = sampling.map(|a| {
+        let sampled: Option<(Sampling, Vec<usize>)> = sampling.map(|a| {
             let sets = a.models.iter().map(|&m| placed[m].first).collect();
-            (a.stride, sets)
+            (a, sets)
         });
         let cores = raw_cores(p);
         for cores in cores.chunks(batch) {
@@ -223,9 +225,10 @@ pub fn raw_sums_sampled(
                         for (sums, _) in out.iter_mut().zip(&filtered).filter(|(_, &f)| f == pass) {
                             add_core(sums, p, core, nblocks, &placed, &pc);
                         }
-                        if let Some((stride, sets)) = &sampled {
+                        if let Some((a, sets)) = &sampled {
                             if pass == p.smoothing.filtered_prediction {
-                                pc.push_samples(p, core, *stride, sets, &mut picked);
+                                let strides = (a.stride, a.map_stride);
+                                pc.push_samples(p, core, strides, sets, &mut picked);
                             }
                         }
                     }
@@ -237,7 +240,7 @@ pub fn raw_sums_sampled(
                     t.add(s);
                 }
                 if !picked.is_empty() {
-                    sink(picked);
+                    sink(fi, picked);
                 }
             }
         }

@@ -69,6 +69,7 @@ mod predict;
 mod prepare;
 mod problem;
 mod regress;
+pub mod residual_map;
 mod row_table;
 mod rows;
 mod scan;
@@ -365,6 +366,13 @@ fn run_prepared_with(
         None => (train, val),
     };
     let mut out = outcome::assemble(arm, base, train, val, cfg, selected, &merged)?;
+    // The maps' units: those of a prismatic joint where the table says so.
+    for m in &mut out.residual_maps.maps {
+        let prismatic = table
+            .and_then(|t| t.joints.get(m.joint))
+            .is_some_and(|jt| jt.kind == crate::dh::JointKind::Prismatic);
+        m.unit = m.variable.unit(prismatic).to_string();
+    }
     out.warnings = identifiability::warnings(train, table, base.dof());
     if let Some(g) = &guard {
         out.warnings.extend(g.weak.iter().map(|w| w.reason.clone()));

@@ -13,10 +13,11 @@ use super::layout::Layout;
 use super::load_stage::{load_model, LoadModel};
 use super::ls;
 use super::physical::{self, Physical};
-use super::predict::{series_strides, PredictionSink, Predictions, Series};
+use super::predict::{series_strides, PredictionSink, Predictions, Series, TrainSamples};
 use super::prepare::{Prepared, Smoothing};
 use super::problem::{with_hint, Problem};
 use super::regress::decimation;
+use super::residual_map::ResidualMaps;
 use super::scan::{CutoffTrial, ScanSampling};
 use super::select::{Selected, Selection};
 use super::{Config, IdentifyError};
@@ -114,6 +115,9 @@ pub struct Outcome {
     pub load_model: Option<LoadModel>,
     #[serde(skip)]
     pub series: Series,
+    /// The final model's training residual binned per joint against q, q̇, q̈, time, run and τ̂
+    /// ([`super::residual_map`]), from the same samples and prediction as `series`.
+    pub residual_maps: ResidualMaps,
     #[serde(skip)]
     pub predictions: Option<Predictions>,
     /// Stage 8: the physically consistent estimate (none when switched off or failed).
@@ -180,6 +184,7 @@ pub(super) fn assemble(
         consistent,
         steps,
         series,
+        residual_maps,
         predictions,
     } = models.judge(base, &problem, train, val, consistent_x)?;
     let std = jackknife_std(&last.loo, last.subset.len());
@@ -238,6 +243,7 @@ pub(super) fn assemble(
         rescanned_with: Vec::new(),
         load_model,
         series,
+        residual_maps,
         predictions,
         physical,
         physical_error,
@@ -255,7 +261,8 @@ pub(super) fn assemble(
 }
 
 /// What [`Models::judge`] finds: the rigid (`before`), final (`after`) and consistent models'
-/// errors, the step table, the plot series and the validation file's predictions.
+/// errors, the step table, the plot series, the residual maps and the validation file's
+/// predictions.
 struct Judgement {
     before: ModelResult,
     after: ModelResult,
@@ -263,6 +270,7 @@ struct Judgement {
     consistent: Option<ModelResult>,
     steps: Vec<StepRow>,
     series: Series,
+    residual_maps: ResidualMaps,
     predictions: Option<Predictions>,
 }
 
@@ -437,10 +445,11 @@ impl Models {
             .into_iter()
             .chain(consistent.map(|_| consistent_slot))
             .collect();
-        // The same passes collect the plot series (rigid and final model) and, of the
-        // validation file, every sample for the predictions table (and its plot).
-        let (train_stride, val_stride) = series_strides(train, val);
-        let mut train_samples = Vec::new();
+        // The same passes collect the plot series (rigid and final model), the residual maps'
+        // samples and, of the validation file, every sample for the predictions table and plot.
+        let (train_stride, val_stride, map_stride) = series_strides(train, val);
+        let t0 = train.iter().map(|p| p.log.t(0));
+        let mut train_samples = TrainSamples::new(layout.dof, t0.collect(), map_stride);
         let mut train_each = raw_sums_sampled(
             base,
             layout,
@@ -450,9 +459,10 @@ impl Models {
             preds,
             Some(Sampling {
                 stride: train_stride,
+                map_stride: Some(map_stride),
                 models: &states[..2],
             }),
-            &mut |s| train_samples.extend_from_slice(s),
+            &mut |file, s| train_samples.take(file, s),
         );
         let (mut val_each, val_out) = match val {
             Some(p) => {
@@ -466,16 +476,19 @@ impl Models {
                     preds,
                     Some(Sampling {
                         stride: 1,
+                        map_stride: None,
                         models: &states,
                     }),
-                    &mut |s| sink.take(s),
+                    &mut |_, s| sink.take(s),
                 );
                 (Some(sums), Some(sink.finish()?))
             }
             None => (None, None),
         };
         let (predictions, val_plotted) = val_out.unzip();
-        let series = Series::from_samples(layout.dof, &train_samples, val_plotted.as_deref());
+        let series =
+            Series::from_samples(layout.dof, &train_samples.series, val_plotted.as_deref());
+        let residual_maps = train_samples.maps.maps();
         let state_sums = filtered.then(|| {
             let t = train_each.pop().expect("two predictions");
             (t, val_each.as_mut().and_then(Vec::pop))
@@ -523,6 +536,7 @@ impl Models {
             consistent,
             steps,
             series,
+            residual_maps,
             predictions,
         })
     }

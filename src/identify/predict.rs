@@ -6,6 +6,7 @@ use std::sync::Arc;
 
 use super::dot;
 use super::prepare::{raw_in_core, Prepared};
+use super::residual_map::{category_map, quantile_map, ResidualMaps, Variable};
 use super::rows::Rows;
 use super::IdentifyError;
 use crate::derivative::States;
@@ -120,15 +121,16 @@ impl Predicted {
             .apply_many(&mut chans, self.lo == 0, self.hi == p.est.grid.n);
     }
 
-    /// Appends, for every `stride`-th used raw sample of `p` in the core `(a, b)` (the core this
-    /// was built for), one sample: t, q̇ (n, interpolated from the window's estimated states —
-    /// estimated now when the rows came from a table), τ (n), then the prediction of each of
-    /// `sets` (n each).
+    /// Appends, for every used raw sample of `p` in the core `(a, b)` (the core this was built
+    /// for) that is a `stride`-th or a `map_stride`-th one of the file's used samples, one
+    /// [`SampleRow`]: which strides it is of, its index among the used samples, t, q̇ (n,
+    /// interpolated from the window's estimated states — estimated now when the rows came from a
+    /// table), τ (n), the prediction of each of `sets` (n each), then q and q̈ (n each).
     pub(super) fn push_samples(
         &mut self,
         p: &Prepared,
         core: (usize, usize),
-        stride: usize,
+        (stride, map_stride): (usize, Option<usize>),
         sets: &[usize],
         out: &mut Vec<f64>,
     ) {
@@ -140,7 +142,18 @@ impl Predicted {
         let Some(st) = this.states.as_ref() else {
             return;
         };
-        raw_in_core(p, core, stride, |_, t, tau, (k, s)| {
+        let stride = stride.max(1);
+        // Without map samples the series' stride alone: only those rows are visited.
+        let visit = if map_stride.is_some() { 1 } else { stride };
+        raw_in_core(p, core, visit, |r, t, tau, (k, s)| {
+            let used = r - p.raw_keep.0;
+            let which = u8::from(used.is_multiple_of(stride))
+                | (u8::from(map_stride.is_some_and(|m| used.is_multiple_of(m.max(1)))) << 1);
+            if which == 0 {
+                return;
+            }
+            out.push(f64::from(which));
+            out.push(used as f64);
             out.push(t);
             let i = k - this.lo;
             for d in &st.dq[..n] {
@@ -149,6 +162,9 @@ impl Predicted {
             out.extend_from_slice(tau);
             for &m in sets {
                 out.extend((0..n).map(|j| this.at(m, j, (k, s))));
+            }
+            for d in st.q[..n].iter().chain(&st.ddq[..n]) {
+                out.push(interpolate(d, i, s));
             }
         });
     }
@@ -237,15 +253,126 @@ impl Predictions {
     }
 }
 
+/// Most samples of the training files the residual maps bin (about; memory ~ `5·dof + 4` floats
+/// a sample).
+pub const MAP_SAMPLES: usize = 50_000;
+
 /// Strides of the plot series: every how many used raw samples of the training files (about
-/// 3000 points over all) and of the validation file (about 4000) a sample is plotted.
-pub(super) fn series_strides(train: &[Prepared], val: Option<&Prepared>) -> (usize, usize) {
+/// 3000 points over all) and of the validation file (about 4000) a sample is plotted, and of the
+/// training files one enters the residual maps (at most [`MAP_SAMPLES`]).
+pub(super) fn series_strides(train: &[Prepared], val: Option<&Prepared>) -> (usize, usize, usize) {
     let used = |p: &Prepared| p.raw_keep.1 - p.raw_keep.0;
     let total: usize = train.iter().map(used).sum();
     (
         total.div_ceil(3000).max(1),
         val.map_or(1, |p| used(p).div_ceil(4000).max(1)),
+        total.div_ceil(MAP_SAMPLES).max(1),
     )
+}
+
+/// Floats in a row of [`Predicted::push_samples`] with `sets` predictions of `n` joints.
+fn sample_width(n: usize, sets: usize) -> usize {
+    3 + (4 + sets) * n
+}
+
+/// The training samples the judging pass hands over ([`Predicted::push_samples`] of the rigid
+/// and the final model, files in order): those of the plot series' stride kept as
+/// [`Series::from_samples`] reads them, those of the maps' stride as [`MapSamples`].
+pub(super) struct TrainSamples {
+    dof: usize,
+    pub(super) series: Vec<f64>,
+    pub(super) maps: MapSamples,
+}
+
+impl TrainSamples {
+    /// For files starting at times `t0` (their first sample's, whether used or not), sampled
+    /// every `every`-th used sample for the maps.
+    pub(super) fn new(dof: usize, t0: Vec<f64>, every: usize) -> Self {
+        TrainSamples {
+            dof,
+            series: Vec::new(),
+            maps: MapSamples {
+                every: every.max(1),
+                t0,
+                at: Vec::new(),
+                time: Vec::new(),
+                vars: vec![Default::default(); dof],
+            },
+        }
+    }
+
+    /// Whole samples of training file `file`, in order.
+    pub(super) fn take(&mut self, file: usize, samples: &[f64]) {
+        let n = self.dof;
+        for x in samples.chunks_exact(sample_width(n, 2)) {
+            let which = x[0] as u8;
+            if which & 1 != 0 {
+                // t, q̇, τ, rigid and final model.
+                self.series.extend_from_slice(&x[2..3 + 4 * n]);
+            }
+            if which & 2 != 0 {
+                self.maps.push(n, file, x);
+            }
+        }
+    }
+}
+
+/// The samples of the residual maps: per sample its (file, index among the file's map samples)
+/// and time since the file's start, per joint q, q̇, q̈, the final model's τ̂ and the residual
+/// τ − τ̂ (in that order).
+pub(super) struct MapSamples {
+    every: usize,
+    t0: Vec<f64>,
+    at: Vec<(usize, u64)>,
+    time: Vec<f64>,
+    vars: Vec<[Vec<f64>; 5]>,
+}
+
+impl MapSamples {
+    fn push(&mut self, n: usize, file: usize, x: &[f64]) {
+        self.at.push((file, (x[1] as usize / self.every) as u64));
+        self.time
+            .push(x[2] - self.t0.get(file).copied().unwrap_or(f64::NAN));
+        let (dq, tau) = (&x[3..3 + n], &x[3 + n..3 + 2 * n]);
+        let after = &x[3 + 3 * n..3 + 4 * n];
+        let (q, ddq) = (&x[3 + 4 * n..3 + 5 * n], &x[3 + 5 * n..3 + 6 * n]);
+        for (j, v) in self.vars.iter_mut().enumerate() {
+            for (c, value) in v
+                .iter_mut()
+                .zip([q[j], dq[j], ddq[j], after[j], tau[j] - after[j]])
+            {
+                c.push(value);
+            }
+        }
+    }
+
+    /// Every joint's maps ([`Variable::ALL`] each).
+    pub(super) fn maps(&self) -> ResidualMaps {
+        let run: Vec<usize> = self.at.iter().map(|a| a.0).collect();
+        let maps = self
+            .vars
+            .iter()
+            .enumerate()
+            .flat_map(|(j, [q, dq, ddq, tau_hat, r])| {
+                Variable::ALL.map(|v| {
+                    let x = match v {
+                        Variable::Position => q,
+                        Variable::Velocity => dq,
+                        Variable::Acceleration => ddq,
+                        Variable::Time => &self.time,
+                        Variable::Torque => tau_hat,
+                        Variable::Run => return category_map(j, v, &run, r, &self.at),
+                    };
+                    quantile_map(j, v, x, r, &self.at)
+                })
+            })
+            .collect();
+        ResidualMaps {
+            every: self.every,
+            samples: self.at.len(),
+            maps,
+        }
+    }
 }
 
 impl Series {
@@ -277,8 +404,9 @@ impl Series {
     }
 }
 
-/// The validation file's samples as the judging pass hands them over (every used raw sample:
-/// t, q̇, τ, then the rigid, final and — when stage 8 ran — consistent models' predictions),
+/// The validation file's samples as the judging pass hands them over (every used raw sample's
+/// [`Predicted::push_samples`] row: t, q̇, τ, then the rigid, final and — when stage 8 ran —
+/// consistent models' predictions, …),
 /// written to the [`Predictions`] table (spilled to a temporary file for a long log) with every
 /// `stride`-th one kept for the validation plot.
 pub(super) struct PredictionSink {
@@ -306,18 +434,19 @@ impl PredictionSink {
         }
     }
 
-    /// Whole samples, in order.
+    /// Whole samples ([`Predicted::push_samples`] rows), in order.
     pub(super) fn take(&mut self, samples: &[f64]) {
         let n = self.dof;
-        for x in samples.chunks_exact(1 + (2 + self.models) * n) {
+        for x in samples.chunks_exact(sample_width(n, self.models)) {
             if self.seen.is_multiple_of(self.stride) {
                 // The plot's sample: t, q̇, τ, rigid and final model.
-                self.plotted.extend_from_slice(&x[..1 + 4 * n]);
+                self.plotted.extend_from_slice(&x[2..3 + 4 * n]);
             }
             self.seen += 1;
             self.row.clear();
-            self.row.push(x[0]);
-            self.row.extend_from_slice(&x[1 + n..]);
+            self.row.push(x[2]);
+            self.row
+                .extend_from_slice(&x[3 + n..3 + (2 + self.models) * n]);
             if let Err(e) = self.table.push(&self.row) {
                 self.failed.get_or_insert(e);
             }

@@ -1097,3 +1097,92 @@ fn base_parameters_the_data_cannot_see_are_held_at_zero_and_named() {
     let cv = c.validation.as_ref().unwrap().overall;
     assert!(cv < 0.015, "consistent validation {cv}");
 }
+
+/// Issue 40's residual maps, end to end: `dynid identify` on the shared simulated set writes per
+/// joint six maps (q, dq, ddq, time, run, tau_hat) over every used training sample, quantile bins
+/// in order with their band around the mean, one SVG per joint and the report.md section. The
+/// binned residual is the final model's: its sum of squares, from any map's bins, gives the
+/// final model's training error in report.json (against the torque of the whole file, whose few
+/// trimmed edge rows move it by 0.2 %, within the 2 % allowed), not the rigid model's.
+#[test]
+fn cli_identify_writes_residual_maps_of_the_final_model() {
+    let d = data("sim/planar2_paper_friction");
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("report");
+    let o = bin()
+        .args(["identify", "--arm"])
+        .arg(d.join("arm.toml"))
+        .arg("--data")
+        .arg(d.join("excite_noisy.csv.gz"))
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    let used = json["data"]["train"][0]["rows_used"].as_u64().unwrap();
+    assert_eq!(json["residual_maps_info"]["every"], 1);
+    assert_eq!(json["residual_maps_info"]["samples"], used);
+    let maps = json["residual_maps"].as_array().unwrap();
+    assert_eq!(maps.len(), 12);
+    // Σ τ² of each joint over the file.
+    let log = Log::open(&d.join("excite_noisy.csv.gz"), Some(2)).unwrap();
+    let at = log.layout.tau_offset().unwrap();
+    let mut tss = [0.0; 2];
+    log.rows(0, log.len(), |r| {
+        for j in 0..2 {
+            tss[j] += r[at + j] * r[at + j];
+        }
+    });
+    for (j, joint) in maps.chunks(6).enumerate() {
+        let names: Vec<&str> = joint
+            .iter()
+            .map(|m| m["variable"].as_str().unwrap())
+            .collect();
+        assert_eq!(names, ["q", "dq", "ddq", "time", "run", "tau_hat"]);
+        for m in joint {
+            assert_eq!(m["joint"], j + 1);
+            let bins = m["bins"].as_array().unwrap();
+            let f = |b: &serde_json::Value, k: &str| b[k].as_f64().unwrap();
+            let n: u64 = bins.iter().map(|b| b["n"].as_u64().unwrap()).sum();
+            assert_eq!(n, used, "{}", m["variable"]);
+            let want = if m["variable"] == "run" { 1 } else { 12 };
+            assert_eq!(bins.len(), want);
+            for (k, b) in bins.iter().enumerate() {
+                assert!(f(b, "lo") <= f(b, "centre") && f(b, "centre") <= f(b, "hi"));
+                assert!(f(b, "ci95_lo") < f(b, "mean") && f(b, "mean") < f(b, "ci95_hi"));
+                if k > 0 {
+                    assert!(f(&bins[k - 1], "hi") < f(b, "lo"));
+                }
+            }
+            let p = m["p_value"].as_f64().unwrap();
+            assert!((0.0..=1.0).contains(&p));
+            let sse: f64 = bins
+                .iter()
+                .map(|b| {
+                    let n = b["n"].as_u64().unwrap() as f64;
+                    (n - 1.0) * f(b, "std").powi(2) + n * f(b, "mean").powi(2)
+                })
+                .sum();
+            let rel = (sse / tss[j]).sqrt();
+            let after = json["error"]["after"]["train"]["per_joint"][j]
+                .as_f64()
+                .unwrap();
+            let before = json["error"]["before"]["train"]["per_joint"][j]
+                .as_f64()
+                .unwrap();
+            assert!(
+                (rel / after - 1.0).abs() < 0.02,
+                "joint {j}: {rel} vs {after}"
+            );
+            assert!(before > 1.2 * after, "joint {j}: {before} vs {after}");
+        }
+        assert!(out
+            .join(format!("residual_map_joint{}.svg", j + 1))
+            .exists());
+    }
+    let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(md.contains("## Residual maps") && md.contains("](residual_map_joint2.svg)"));
+    assert!(md.contains("held-out gain"));
+}
