@@ -6,7 +6,7 @@ use serde::Serialize;
 use super::base::BaseModel;
 use super::columns::Merged;
 use super::evaluate::{
-    raw_sums_sampled, Errors, Judged, ModelResult, Prediction, Sampling, StateErrors,
+    raw_sums_sampled, Errors, Judged, ModelResult, Prediction, RawSums, Sampling, StateErrors,
 };
 use super::identifiability::Undetermined;
 use super::layout::Layout;
@@ -466,22 +466,9 @@ impl Models {
         );
         let (mut val_each, val_out) = match val {
             Some(p) => {
-                let mut sink = PredictionSink::new(layout.dof, states.len(), val_stride);
-                let sums = raw_sums_sampled(
-                    base,
-                    layout,
-                    std::slice::from_ref(p),
-                    None,
-                    &judged,
-                    preds,
-                    Some(Sampling {
-                        stride: 1,
-                        map_stride: None,
-                        models: &states,
-                    }),
-                    &mut |_, s| sink.take(s),
-                );
-                (Some(sums), Some(sink.finish()?))
+                let (sums, out) =
+                    judge_validation(base, layout, p, (&judged, preds, &states), val_stride)?;
+                (Some(sums), Some(out))
             }
             None => (None, None),
         };
@@ -540,6 +527,36 @@ impl Models {
             predictions,
         })
     }
+}
+
+/// The validation predictions and the plotted samples ([`PredictionSink::finish`]).
+type ValidationOut = (Predictions, Vec<f64>);
+
+/// The validation file's pass of [`Models::judge`]: the sums of every judged model under each of
+/// `preds`, and every `stride`-th sample of the `states` models for the predictions table and plot.
+fn judge_validation(
+    base: &BaseModel,
+    layout: &Layout,
+    val: &Prepared,
+    (judged, preds, states): (&[Judged], &[Prediction], &[usize]),
+    stride: usize,
+) -> Result<(Vec<RawSums>, ValidationOut), IdentifyError> {
+    let mut sink = PredictionSink::new(layout.dof, states.len(), stride);
+    let sums = raw_sums_sampled(
+        base,
+        layout,
+        std::slice::from_ref(val),
+        None,
+        judged,
+        preds,
+        Some(Sampling {
+            stride: 1,
+            map_stride: None,
+            models: states,
+        }),
+        &mut |_, s| sink.take(s),
+    );
+    Ok((sums, sink.finish()?))
 }
 
 /// Block-jackknife standard deviations of `k` parameters from their leave-one-block-out fits.
