@@ -51,7 +51,7 @@ MODELLED_BY: dict[str, tuple[list[str], list[str]]] = {
     "ripple": ([], []),
     "asym_coulomb": (["coulomb", "offset"], []),
     "run_offset": ([], ["offset"]),
-    "drift": ([], ["offset"]),
+    "drift": (["drift"], ["offset"]),
 }
 GENERATED = ["planar2", "puma560", "panda", "scara"]
 CUTOFF_GRID = [1.0, 2.0, 4.0, 8.0, 16.0]

@@ -4,7 +4,8 @@
 //! `inertia_com` or `inertia_origin = [ixx, ixy, ixz, iyy, iyz, izz]` (kg·m²; the off-diagonal
 //! entries are those of the inertia *tensor*, i.e. `ixy = −∫xy dm`, as in URDF). An optional
 //! `[effects]` table holds per-joint arrays ([`KNOWN_EFFECTS`]): the coefficients of
-//! `viscous`, `coulomb`, `stribeck`, `armature`, `offset`, `spring` and `loadcoulomb`, and the
+//! `viscous`, `coulomb`, `stribeck`, `armature`, `offset`, `spring`, `drift` and `loadcoulomb`, and
+//! the
 //! friction's velocity scales `sign_velocity` (the sign is `tanh(q̇/v)`; absent or 0: exact) and
 //! `stribeck_velocity` (default 0.1) — the torque of each is [`crate::effects::Effect::column`].
 //! `dynid identify` writes such a file (`identified.params.toml`, [`InertialParams::to_toml`]).
@@ -44,13 +45,14 @@ use crate::tomlread::{Fail, Src, TableView};
 
 /// Names of the per-joint arrays an `[effects]` table may hold: the effects' coefficients, then
 /// the velocity scales of the friction terms.
-pub const KNOWN_EFFECTS: [&str; 9] = [
+pub const KNOWN_EFFECTS: [&str; 10] = [
     "viscous",
     "coulomb",
     "stribeck",
     "armature",
     "offset",
     "spring",
+    "drift",
     "loadcoulomb",
     "sign_velocity",
     "stribeck_velocity",
@@ -109,6 +111,9 @@ pub struct Effects {
     /// Linear spring `k` about q = 0 (a spring about another rest angle is a spring plus an
     /// offset): `τ += k·q`.
     pub spring: Option<Vec<f64>>,
+    /// Slow drift `c` over a run: `τ += c·t`, `t` the time since the start of the run (s). Not in
+    /// [`Effects::torque`], which has no time: a simulation starts without it.
+    pub drift: Option<Vec<f64>>,
     /// Load-dependent Coulomb friction `μ` (gear friction growing with the transmitted torque):
     /// `τ = u + μ·sign(q̇)·|u|`, `u` the rigid-body torque plus the other effects
     /// ([`Effects::load`]; `μ < 1`).
@@ -128,6 +133,7 @@ impl Effects {
             && self.armature.is_none()
             && self.offset.is_none()
             && self.spring.is_none()
+            && self.drift.is_none()
             && self.loadcoulomb.is_none()
             && self.stribeck.is_none()
     }
@@ -155,7 +161,7 @@ impl Effects {
     }
 
     /// Every `[effects]` array with its key, in [`KNOWN_EFFECTS`] order (the file's order).
-    pub fn arrays(&self) -> [(&'static str, &Option<Vec<f64>>); 9] {
+    pub fn arrays(&self) -> [(&'static str, &Option<Vec<f64>>); 10] {
         [
             ("viscous", &self.viscous),
             ("coulomb", &self.coulomb),
@@ -163,6 +169,7 @@ impl Effects {
             ("armature", &self.armature),
             ("offset", &self.offset),
             ("spring", &self.spring),
+            ("drift", &self.drift),
             ("loadcoulomb", &self.loadcoulomb),
             ("sign_velocity", &self.sign_velocity),
             ("stribeck_velocity", &self.stribeck_velocity),
@@ -178,6 +185,7 @@ impl Effects {
             Effect::Offset => &mut self.offset,
             Effect::Armature => &mut self.armature,
             Effect::Spring => &mut self.spring,
+            Effect::Drift => &mut self.drift,
             Effect::LoadCoulomb => &mut self.loadcoulomb,
         }
     }
@@ -645,6 +653,7 @@ fn read_effects(t: &TableView<'_>, dof: usize) -> Result<Effects, ParamsError> {
         armature: t.f64_array_opt("armature", Some(dof))?,
         offset: t.f64_array_opt("offset", Some(dof))?,
         spring: t.f64_array_opt("spring", Some(dof))?,
+        drift: t.f64_array_opt("drift", Some(dof))?,
         loadcoulomb,
         sign_velocity: velocity("sign_velocity", true)?,
         stribeck_velocity: velocity("stribeck_velocity", false)?,

@@ -167,7 +167,7 @@ impl Estimator {
                 .as_zero_phase()
                 .derivatives_many(qg, dqg, dt, pad_left, pad_right, keep),
         };
-        States { lo, q, dq, ddq }
+        States { lo, dt, q, dq, ddq }
     }
 }
 

@@ -160,6 +160,8 @@ impl Estimate {
 #[derive(Debug, Clone)]
 pub struct States {
     pub lo: usize,
+    /// Grid step (s): grid sample `k` is at `k·dt` since the start of the run.
+    pub dt: f64,
     pub q: Vec<Vec<f64>>,
     pub dq: Vec<Vec<f64>>,
     pub ddq: Vec<Vec<f64>>,

@@ -54,6 +54,8 @@ pub struct JointState {
     pub q: f64,
     pub dq: f64,
     pub ddq: f64,
+    /// Time since the start of the run (s), read by `drift` only; 0 unless set ([`JointState::at`]).
+    pub t: f64,
     scales: Scales,
     sign: std::cell::Cell<Option<f64>>,
 }
@@ -64,9 +66,16 @@ impl JointState {
             q,
             dq,
             ddq,
+            t: 0.0,
             scales: *scales,
             sign: std::cell::Cell::new(None),
         }
+    }
+
+    /// The state at time `t` since the start of its run (s).
+    pub fn at(mut self, t: f64) -> Self {
+        self.t = t;
+        self
     }
 
     /// The smoothed sign of the velocity ([`Scales::sign`]).
@@ -83,9 +92,10 @@ impl JointState {
 }
 
 impl Effect {
-    /// The torque one unit of this effect adds at a joint in state `(q, q̇, q̈)`: the regressor
-    /// column. `load` is the joint's rigid-body torque (used by [`Effect::LOADED`] only; the
-    /// plant's load-dependent friction is [`super::load`]).
+    /// The torque one unit of this effect adds at a joint in state `(q, q̇, q̈)`, at the start of a
+    /// run (`drift` is 0 there; [`Effect::column_at`] with [`JointState::at`] for later times):
+    /// the regressor column. `load` is the joint's rigid-body torque (used by [`Effect::LOADED`]
+    /// only; the plant's load-dependent friction is [`super::load`]).
     pub fn column(self, q: f64, dq: f64, ddq: f64, load: f64, s: &Scales) -> f64 {
         self.column_at(&JointState::new(q, dq, ddq, s), load)
     }
@@ -99,6 +109,7 @@ impl Effect {
             Effect::Offset => 1.0,
             Effect::Armature => st.ddq,
             Effect::Spring => st.q,
+            Effect::Drift => st.t,
             Effect::LoadCoulomb => st.sign() * load.abs(),
         }
     }

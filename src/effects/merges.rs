@@ -1,7 +1,7 @@
 //! Effects that are rigid-body parameters in disguise for every motion (see the module docs of
 //! [`super`]: the armature of a revolute first joint about a fixed axis is the `ZZR1` column).
 
-use super::{Scales, Term};
+use super::{JointState, Scales, Term};
 
 /// Candidates merged with rigid-body parameters for every motion, with the base parameters they
 /// merge into. `base_rows(state, out)` fills the base regressor; `states` are random states.
@@ -36,7 +36,9 @@ pub fn structural_merges(
             let (s, i) = (r / dof, r % dof);
             if i == t.joint {
                 let [q, dq, ddq] = &states[s];
-                t.effect.column(q[i], dq[i], ddq[i], 1.0, &unit)
+                // Each random state at its own time, so that `drift` is tested like the rest.
+                let st = JointState::new(q[i], dq[i], ddq[i], &unit).at(s as f64);
+                t.effect.column_at(&st, 1.0)
             } else {
                 0.0
             }

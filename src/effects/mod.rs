@@ -9,6 +9,7 @@
 //! | `offset` | `1` | N·m |
 //! | `armature` | `q̈ⱼ` (rotor inertia reflected through the gear) | kg·m² |
 //! | `spring` | `qⱼ` (linear spring; its rest angle appears as an offset) | N·m/rad |
+//! | `drift` | `t`, the time since the start of the run (slow thermal drift: a motor's and gear's friction and a torque sensor's zero change as they warm up, over minutes — nearly linear over one run) | N·m/s |
 //! | `loadcoulomb` | `tanh(q̇ⱼ / vⱼ) · |τ̂ⱼ|`, τ̂ⱼ the rigid-body torque of joint j (load-dependent friction: a gear's friction grows with the torque it transmits) | N·m per N·m |
 //!
 //! `loadcoulomb` is bilinear (its column holds the rigid-body parameters), so it is fitted in two
@@ -51,19 +52,21 @@ pub enum Effect {
     Offset,
     Armature,
     Spring,
+    Drift,
     #[serde(rename = "loadcoulomb")]
     LoadCoulomb,
 }
 
 impl Effect {
     /// Every effect, in the order candidates are listed.
-    pub const ALL: [Effect; 6] = [
+    pub const ALL: [Effect; 7] = [
         Effect::Viscous,
         Effect::Coulomb,
         Effect::Stribeck,
         Effect::Offset,
         Effect::Armature,
         Effect::Spring,
+        Effect::Drift,
     ];
 
     /// Effects whose column needs the rigid-body torque of a first-stage fit: searched after
@@ -88,6 +91,7 @@ impl Effect {
             Effect::Offset => "offset",
             Effect::Armature => "armature",
             Effect::Spring => "spring",
+            Effect::Drift => "drift",
             Effect::LoadCoulomb => "loadcoulomb",
         }
     }
@@ -104,6 +108,7 @@ impl Effect {
             Effect::Coulomb | Effect::Stribeck | Effect::Offset => "N·m",
             Effect::Armature => "kg·m²",
             Effect::Spring => "N·m/rad",
+            Effect::Drift => "N·m/s",
             Effect::LoadCoulomb => "N·m/N·m",
         }
     }

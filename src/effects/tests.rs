@@ -58,3 +58,14 @@ fn the_plant_uses_the_exact_sign_and_the_column_its_smoothing() {
         -3.0
     );
 }
+
+/// The drift column is the time since the start of the run, whatever the motion: 0 at the start,
+/// `t` later (so its coefficient is the torque's rate of change, N·m/s).
+#[test]
+fn drift_column_is_the_time_since_the_run_started() {
+    let s = Scales::from_rms_velocity(1.0);
+    assert_eq!(Effect::Drift.column(0.3, 1.0, 2.0, 0.0, &s), 0.0);
+    let st = JointState::new(0.3, 1.0, 2.0, &s).at(12.5);
+    assert_eq!(Effect::Drift.column_at(&st, 0.0), 12.5);
+    assert_eq!(Effect::parse("drift"), Some(Effect::Drift));
+}

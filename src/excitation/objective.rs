@@ -71,6 +71,12 @@ impl Observation {
             &names,
         );
         let mut dropped = dropped;
+        // A drift is a function of time, not of the motion: no excitation changes its column.
+        dropped.extend(
+            all.iter()
+                .filter(|t| t.effect == Effect::Drift)
+                .map(|&t| (t, vec!["time, not the motion".to_string()])),
+        );
         let mut terms: Vec<Term> = all
             .into_iter()
             .filter(|t| !dropped.iter().any(|(d, _)| d == t))

@@ -78,7 +78,7 @@ impl<'a> Rows<'a> {
             std::mem::take(&mut self.dq),
             std::mem::take(&mut self.ddq),
         );
-        self.place(&q, &dq, &ddq);
+        self.place(&q, &dq, &ddq, k as f64 * st.dt);
         (self.q, self.dq, self.ddq) = (q, dq, ddq);
         &self.row
     }
@@ -105,12 +105,13 @@ impl<'a> Rows<'a> {
         }
         self.state_and_base(st, k, None);
         let (terms, scales) = (&self.layout.terms, &self.layout.scales);
+        let time = k as f64 * st.dt;
         for (j, o) in out.iter_mut().enumerate() {
             let (q, dq, ddq) = (self.q[j], self.dq[j], self.ddq[j]);
             // From locals moved into the closure: reading `self.yb` and `nb` through references
             // reloaded them for every element (the writes to `o` could alias them).
             let (yb, scale) = (&self.yb[j * nb..(j + 1) * nb], &scales[j]);
-            let st = JointState::new(q, dq, ddq, scale);
+            let st = JointState::new(q, dq, ddq, scale).at(time);
             o.extend(active[j].iter().map(move |&c| match c.checked_sub(nb) {
                 None => yb[c],
                 Some(i) => terms[i].effect.column_at(&st, 0.0),
@@ -170,8 +171,9 @@ impl<'a> Rows<'a> {
         }
     }
 
-    /// The rows from the base regressor in `self.yb` and the effect columns of the state.
-    fn place(&mut self, q: &[f64], dq: &[f64], ddq: &[f64]) {
+    /// The rows from the base regressor in `self.yb` and the effect columns of the state, at time
+    /// `time` since the start of the run.
+    fn place(&mut self, q: &[f64], dq: &[f64], ddq: &[f64], time: f64) {
         let (n, nb, nc) = (self.layout.dof, self.layout.nb, self.layout.ncols());
         let out = &mut self.row;
         for j in 0..n {
@@ -182,7 +184,8 @@ impl<'a> Rows<'a> {
         let states: &mut Vec<JointState> = &mut self.states;
         states.clear();
         states.extend(
-            (0..q.len()).map(|j| JointState::new(q[j], dq[j], ddq[j], &self.layout.scales[j])),
+            (0..q.len())
+                .map(|j| JointState::new(q[j], dq[j], ddq[j], &self.layout.scales[j]).at(time)),
         );
         for (i, t) in terms
             .iter()
@@ -518,6 +521,7 @@ mod tests {
             let mut col = || (0..10).map(|_| next()).collect::<Vec<f64>>();
             States {
                 lo: 100,
+                dt: 0.01,
                 q: (0..n).map(|_| col()).collect(),
                 dq: (0..n).map(|_| col()).collect(),
                 ddq: (0..n).map(|_| col()).collect(),

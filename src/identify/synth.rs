@@ -21,7 +21,7 @@ use rand_chacha::ChaCha8Rng;
 
 use crate::data::Trajectory;
 use crate::dh::{DhTable, JointKind};
-use crate::effects::{self, Effect, Scales, Term};
+use crate::effects::{self, Effect, JointState, Scales, Term};
 use crate::measurement::add_measurement_noise;
 use crate::reference::RefModel;
 
@@ -222,9 +222,8 @@ pub fn generate(spec: &Spec) -> Trajectory {
         for (term, v) in &spec.effects {
             let j = term.joint;
             if !term.effect.needs_load() {
-                ts[j] += v * term
-                    .effect
-                    .column(qs[j], dqs[j], ddqs[j], 0.0, &Scales::EXACT);
+                let st = JointState::new(qs[j], dqs[j], ddqs[j], &Scales::EXACT).at(tk);
+                ts[j] += v * term.effect.column_at(&st, 0.0);
             }
         }
         for (term, v) in spec.effects.iter().filter(|(t, _)| t.effect.needs_load()) {
