@@ -493,7 +493,10 @@ fn stribeck_friction_is_found_on_the_right_joint() {
 /// for it with a Coulomb term on the same joint; that term is dropped when redundant, but may
 /// stay small (the second stage's load is the first stage's torque, Coulomb included):
 /// measured μ = 0.149 of 0.15 with nothing else on joint 2, 0.097 of 0.1 next to a 0.017 N·m
-/// Coulomb on joint 1.
+/// Coulomb on joint 1. That small Coulomb term also absorbs what the two-stage model leaves
+/// (the load is a model's torque, not the truth): since `drift` joined the candidates, the first
+/// stage's larger family (Bonferroni) no longer admits it on seed 49, and joint 1's validation
+/// error is 1.46 % instead of 1.26 % — hence the bar of 1.5 × the 1 % noise.
 #[test]
 fn load_dependent_friction_is_found_in_the_second_stage() {
     for (joint, mu, seed) in [(1, 0.15, 48), (0, 0.1, 49)] {
@@ -516,7 +519,7 @@ fn load_dependent_friction_is_found_in_the_second_stage() {
         );
         let (before, after) = validation_before_after(&o);
         assert!(
-            after < 0.013 && after < 0.5 * before,
+            after < 0.015 && after < 0.5 * before,
             "{label}: validation {before} -> {after}"
         );
     }
