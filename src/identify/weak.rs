@@ -102,15 +102,7 @@ pub fn pooled_joints(
     dof: usize,
     weak: &[WeakJoint],
 ) -> Option<Vec<usize>> {
-    let prismatic = |j: usize| {
-        table
-            .and_then(|t| t.joints.get(j))
-            .is_some_and(|jt| jt.kind == JointKind::Prismatic)
-    };
-    let live: Vec<usize> = (0..dof)
-        .filter(|&j| !weak.iter().any(|w| w.joint == j))
-        .collect();
-    let (p, r): (Vec<usize>, Vec<usize>) = live.iter().partition(|&&j| prismatic(j));
+    let (r, p) = live_by_unit(table, dof, weak);
     let kept = if p.len() > r.len() { p } else { r };
     (kept.len() < dof && !kept.is_empty()).then_some(kept)
 }
@@ -118,19 +110,27 @@ pub fn pooled_joints(
 /// The identifiable (not `weak`) joints grouped by unit (revolute, prismatic), empty groups
 /// left out; every joint in one group when all are weak.
 pub fn unit_groups(table: Option<&DhTable>, dof: usize, weak: &[WeakJoint]) -> Vec<Vec<usize>> {
+    let (r, p) = live_by_unit(table, dof, weak);
+    if r.is_empty() && p.is_empty() {
+        return vec![(0..dof).collect()];
+    }
+    [r, p].into_iter().filter(|g| !g.is_empty()).collect()
+}
+
+/// The identifiable (not `weak`) joints: the revolute ones and the prismatic ones.
+fn live_by_unit(
+    table: Option<&DhTable>,
+    dof: usize,
+    weak: &[WeakJoint],
+) -> (Vec<usize>, Vec<usize>) {
     let prismatic = |j: usize| {
         table
             .and_then(|t| t.joints.get(j))
             .is_some_and(|jt| jt.kind == JointKind::Prismatic)
     };
-    let live: Vec<usize> = (0..dof)
+    (0..dof)
         .filter(|&j| !weak.iter().any(|w| w.joint == j))
-        .collect();
-    if live.is_empty() {
-        return vec![(0..dof).collect()];
-    }
-    let (p, r): (Vec<usize>, Vec<usize>) = live.iter().partition(|&&j| prismatic(j));
-    [r, p].into_iter().filter(|g| !g.is_empty()).collect()
+        .partition(|&j| !prismatic(j))
 }
 
 #[cfg(test)]
