@@ -241,12 +241,22 @@ struct Ctx<'a> {
 
 /// A model's held-out errors: pooled per joint against the measured torque (the verdict), and
 /// per leave-one-block-out block and joint on the regression rows, unweighted (the test).
+#[derive(Clone)]
 struct Heldout {
     pooled: Vec<f64>,
     blocks: Vec<Vec<f64>>,
 }
 
-impl Ctx<'_> {
+impl<'a> Ctx<'a> {
+    fn new(base: &'a BaseModel, p: &'a Problem, train: &'a [Prepared], by_run: bool) -> Self {
+        Ctx {
+            base,
+            p,
+            train,
+            by_run,
+        }
+    }
+
     fn heldout(&self, terms: &[Term]) -> Result<Heldout, RankError> {
         let pooled = heldout_per_joint(self.base, self.p, self.train, terms, self.by_run)?;
         let subset = self.p.subset(terms);
@@ -323,16 +333,17 @@ pub(super) fn guard(
     let n = selected.problem.layout.dof;
     let (plain, collinear) = plain_terms(&selected.problem);
     // By run when every fit without one file exists, else by block.
-    let by_run = selected.problem.files() > 1
-        && heldout_per_joint(base, &selected.problem, train, &plain, true).is_ok();
-    let (terms, added, fixes, first, e_plain, t_crit) = {
-        let ctx = Ctx {
-            base,
-            p: &selected.problem,
-            train,
-            by_run,
-        };
-        let e_plain = ctx.heldout(&plain)?;
+    let mut by_run = selected.problem.files() > 1;
+    let e_plain = match Ctx::new(base, &selected.problem, train, by_run).heldout(&plain) {
+        Ok(e) => e,
+        Err(_) if by_run => {
+            by_run = false;
+            Ctx::new(base, &selected.problem, train, false).heldout(&plain)?
+        }
+        Err(e) => return Err(e),
+    };
+    let (terms, added, fixes, first, mut e_sel, t_crit) = {
+        let ctx = Ctx::new(base, &selected.problem, train, by_run);
         noisy(&e_plain.pooled, &mut weak);
         weak.sort_by_key(|w| w.joint);
         let weak_joints: Vec<usize> = weak.iter().map(|w| w.joint).collect();
@@ -341,7 +352,7 @@ pub(super) fn guard(
         let t_crit = t_quantile(1.0 - alpha / compared as f64, dof_t);
         let mut terms = selected.selection.terms.clone();
         let first = ctx.heldout(&terms)?;
-        let mut e_sel = ctx.heldout(&terms)?;
+        let mut e_sel = first.clone();
         let mut added: Vec<Term> = Vec::new();
         let mut fixes: Vec<String> = Vec::new();
         // First the losing joints' own plain terms (the search's missed effects), round by round.
@@ -374,24 +385,24 @@ pub(super) fn guard(
                 ));
                 terms.extend(&missing);
                 added.extend(&missing);
+                e_sel = ctx.heldout(&terms)?;
             }
         }
-        (terms, added, fixes, first, e_plain, t_crit)
+        (terms, added, fixes, first, e_sel, t_crit)
     };
-    let reloaded = !added.is_empty() && terms.iter().any(|t| t.effect.needs_load());
     selected.selection.terms = terms;
     selected.selection.guarded = added.clone();
     selected.selection.plain = plain.clone();
-    if reloaded {
+    let loaded = selected
+        .selection
+        .terms
+        .iter()
+        .any(|t| t.effect.needs_load());
+    if !added.is_empty() && loaded {
         selected = reload(base, train, blocks, selected)?;
+        e_sel =
+            Ctx::new(base, &selected.problem, train, by_run).heldout(&selected.selection.terms)?;
     }
-    let ctx = Ctx {
-        base,
-        p: &selected.problem,
-        train,
-        by_run,
-    };
-    let e_sel = ctx.heldout(&selected.selection.terms)?;
     let (_, t) = losing(&e_sel, &e_plain, t_crit, &[]);
     let joints = verdicts(
         (&e_sel.pooled, &first.pooled, &e_plain.pooled),

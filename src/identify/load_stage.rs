@@ -92,19 +92,14 @@ pub(super) fn load_stage(
             declared,
         });
     }
-    let subset = problem.subset(&first.terms);
-    let w = problem.weights(&subset).map_err(|e| with_hint(e, train))?;
-    let fit = problem.fit(&subset, &w).map_err(|e| with_hint(e, train))?;
     let mut l2 = problem.layout.clone();
     l2.terms.extend(fixed.iter().chain(&search));
     l2.terms.sort();
     l2.terms.dedup();
     // The new terms sort last (their effects are the last variants): first-stage columns keep
     // their indices.
-    l2.load = vec![0.0; l2.ncols()];
-    for (&c, &x) in subset.iter().zip(&fit.x) {
-        l2.load[c] = x;
-    }
+    l2.load =
+        first_stage_load(&problem, &first.terms, l2.ncols()).map_err(|e| with_hint(e, train))?;
     let p2 = Problem::build(base, l2, train, cfg.blocks);
     let start: Vec<Term> = first.terms.iter().chain(&fixed).copied().collect();
     let second = select(&p2, &start, &search, &cfg.rules)?;
@@ -170,10 +165,27 @@ pub(super) fn load_stage(
     })
 }
 
-/// `selected` with its load-dependent columns rebuilt from the torque of its own first-stage
-/// terms (every term but the load-dependent ones, fitted on the same rows): what the load stage
-/// computes for a fixed `--effects` list of the same terms, so a model the guard extended after
-/// the load stage is the model its effects list names. Without load-dependent terms, unchanged.
+/// The coefficients of `terms`' fit on `problem` over `ncols` columns, zero elsewhere: the
+/// first-stage model whose torque the load-dependent columns hold ([`Layout::load`]).
+fn first_stage_load(
+    problem: &Problem,
+    terms: &[Term],
+    ncols: usize,
+) -> Result<Vec<f64>, RankError> {
+    let subset = problem.subset(terms);
+    let w = problem.weights(&subset)?;
+    let fit = problem.fit(&subset, &w)?;
+    let mut load = vec![0.0; ncols];
+    for (&c, &x) in subset.iter().zip(&fit.x) {
+        load[c] = x;
+    }
+    Ok(load)
+}
+
+/// `selected`, which has load-dependent terms, with those columns rebuilt from the torque of its
+/// own first-stage terms (every term but the load-dependent ones, fitted on the same rows): what
+/// the load stage computes for a fixed `--effects` list of the same terms, so a model the guard
+/// extended after the load stage is the model its effects list names.
 pub(super) fn reload(
     base: &BaseModel,
     train: &[Prepared],
@@ -185,27 +197,14 @@ pub(super) fn reload(
         selection,
         declared,
     } = selected;
-    if !selection.terms.iter().any(|t| t.effect.needs_load()) {
-        return Ok(Selected {
-            problem,
-            selection,
-            declared,
-        });
-    }
     let first: Vec<Term> = selection
         .terms
         .iter()
         .copied()
         .filter(|t| !t.effect.needs_load())
         .collect();
-    let subset = problem.subset(&first);
-    let w = problem.weights(&subset)?;
-    let fit = problem.fit(&subset, &w)?;
     let mut layout = problem.layout.clone();
-    layout.load = vec![0.0; layout.ncols()];
-    for (&c, &x) in subset.iter().zip(&fit.x) {
-        layout.load[c] = x;
-    }
+    layout.load = first_stage_load(&problem, &first, layout.ncols())?;
     Ok(Selected {
         problem: Problem::build(base, layout, train, blocks),
         selection,
