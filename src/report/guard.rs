@@ -76,8 +76,6 @@ pub fn section(m: &mut String, o: &Outcome) {
         m,
         "The plain fit is the rigid body plus {} (one least-squares solve{}). Held out: {by}; relative RMS against the measured torque, each joint on its own scale. Where the plain fit predicted a joint better — in the pooled error and block after block (t: one-sided t-test on the per-block log ratios, selected / plain; it acts above {:.2}, family level {} % over the joints) — the guard added the plain terms the search had left out on that joint (module docs of `identify::guard`).\n",
         g.plain_terms.join(", "),
-        g.joints.first().map_or(f64::NAN, |j| j.t_crit),
-        100.0 * g.alpha,
         if g.plain_collinear.is_empty() {
             String::new()
         } else {
@@ -85,7 +83,9 @@ pub fn section(m: &mut String, o: &Outcome) {
                 "; {} left out: collinear with the other columns in this data",
                 g.plain_collinear.join(", ")
             )
-        }
+        },
+        g.joints.first().map_or(f64::NAN, |j| j.t_crit),
+        100.0 * g.alpha,
     );
     let has_val = o.after.validation.is_some() && o.plain.is_some();
     let _ = writeln!(

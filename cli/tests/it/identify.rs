@@ -1022,6 +1022,17 @@ fn cli_identify_writes_report_and_recomputable_predictions() {
         .as_f64()
         .unwrap();
     assert!(((sse / tss).sqrt() - reported).abs() < 1e-9 * reported.max(1.0));
+    // The guard's paragraph states the critical value and level report.json holds, each in its
+    // place (a shifted format argument once printed t_crit after "least-squares solve").
+    let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+    let t_crit = json["guard"]["joints"][0]["t_crit"].as_f64().unwrap();
+    let alpha = json["guard"]["alpha"].as_f64().unwrap();
+    let expect = format!(
+        "it acts above {t_crit:.2}, family level {} % over the joints",
+        100.0 * alpha
+    );
+    assert!(md.contains(&expect), "{expect:?} not in report.md");
+    assert!(md.contains("(one least-squares solve)"), "{md}");
 }
 
 /// Issue 18's "parameters the data cannot determine": a PUMA 560 driven for 4 s by one slow
