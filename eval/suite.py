@@ -375,6 +375,8 @@ def identify(dynid: str, arm: str, runs: list[Path], out: Path, extra: list[str]
     return {
         "validation": r["error"]["after"]["validation"]["overall"],
         "found": sorted(f"{e['effect']}{e['joint']}" for e in r["effects_found"]),
+        # Terms the per-joint guard added to the model (0-based joints in `selection`).
+        "guarded": sorted(f"{t['effect']}{t['joint'] + 1}" for t in r["selection"].get("guarded", [])),
         "not_identifiable": sorted(m["effect"] for m in r["not_identifiable"]),
         "cutoff_hz": r["data"]["train"][0]["derivative"]["cutoff_hz"],
         "seconds": secs,
@@ -438,6 +440,7 @@ def score(cases: list[dict]) -> dict:
     decisions = []  # (kind, share or None, truth bool, found bool)
     new_found = []  # (new effect, share, found by its library kinds)
     ratio, cutoff_ratio, seconds, failed = [], [], [], 0
+    guarded = []  # per term the guard added: whether the case has it
     for c in cases:
         a = c["auto"]
         if "failed" in a:
@@ -455,6 +458,8 @@ def score(cases: list[dict]) -> dict:
                 if term in hidden or term in allowed:
                     continue
                 decisions.append((e, shares.get(term), term in shares, term in a["found"]))
+                if term in a.get("guarded", []):
+                    guarded.append(term in shares)
         for e in c["effects"]:
             if e["effect"] in NEW_EFFECTS:
                 required = [f"{kind}{e['joint']}" for kind in MODELLED_BY[e["effect"]][0]]
@@ -472,6 +477,7 @@ def score(cases: list[dict]) -> dict:
     negatives = [d for d in decisions if not d[2]]
     out["false_positive_rate"] = sum(d[3] for d in negatives) / max(len(negatives), 1)
     out["decisions"] = len(decisions)
+    out["guard_added"] = {"true": sum(guarded), "absent": len(guarded) - sum(guarded)}
     out["per_kind"] = {}
     for e in library_kinds():
         pos = [d for d in decisions if d[0] == e and d[2]]
@@ -533,6 +539,8 @@ def markdown(s: dict, args: argparse.Namespace) -> str:
         f"| automatic cut-off ≤ 1.1 × best fixed (true effects) | {s['auto_cutoff_over_best_fixed']['within_1.1']:.3f}"
         f" of cases (median {s['auto_cutoff_over_best_fixed']['median']:.3f}, worst"
         f" {s['auto_cutoff_over_best_fixed']['max']:.2f}) | ≥ 0.95 |",
+        f"| terms the per-joint guard added (not in the table below) | {s['guard_added']['true']} true,"
+        f" {s['guard_added']['absent']} absent in truth | |",
         f"| identify run time | median {s['seconds_per_identify']['median']:.2f} s, worst"
         f" {s['seconds_per_identify']['max']:.1f} s | |",
         "",

@@ -60,6 +60,7 @@ mod dot;
 mod evaluate;
 pub mod guard;
 pub mod identifiability;
+mod jackknife;
 mod layout;
 mod load_stage;
 pub mod ls;

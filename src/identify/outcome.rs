@@ -9,6 +9,7 @@ use super::evaluate::{
     raw_sums_sampled, Errors, Judged, ModelResult, Prediction, RawSums, Sampling, StateErrors,
 };
 use super::identifiability::Undetermined;
+use super::jackknife;
 use super::layout::Layout;
 use super::load_stage::{load_model, LoadModel};
 use super::ls;
@@ -187,7 +188,7 @@ pub(super) fn assemble(
         residual_maps,
         predictions,
     } = models.judge(base, &problem, train, val, consistent_x)?;
-    let std = jackknife_std(&last.loo, last.subset.len());
+    let std = jackknife::std(&last.loo, last.subset.len());
     let (theta, effects) = estimates(layout, &selection, &after, &std);
     // Per column of the final model (held-at-zero base columns are not among them).
     let sig = super::identifiability::torque_sigma(&problem, &last.subset, &last.w, &std);
@@ -559,22 +560,8 @@ fn judge_validation(
     Ok((sums, sink.finish()?))
 }
 
-/// Block-jackknife standard deviations of `k` parameters from their leave-one-block-out fits.
-fn jackknife_std(loo: &[Vec<f64>], k: usize) -> Vec<f64> {
-    let nb_ = loo.len() as f64;
-    (0..k)
-        .map(|k| {
-            if loo.len() < 2 {
-                return f64::NAN;
-            }
-            let mean = loo.iter().map(|x| x[k]).sum::<f64>() / nb_;
-            ((nb_ - 1.0) / nb_ * loo.iter().map(|x| (x[k] - mean).powi(2)).sum::<f64>()).sqrt()
-        })
-        .collect()
-}
-
 /// The final model's (`after`) parameters, base then effects, with their standard deviations
-/// `std` (per column of `after.subset`, from [`jackknife_std`]). A base parameter held at zero
+/// `std` (per column of `after.subset`, from [`jackknife::std`]). A base parameter held at zero
 /// (`layout.fixed`) is 0 with no standard deviation.
 fn estimates(
     layout: &Layout,

@@ -47,7 +47,7 @@ pub fn json(o: &Outcome) -> Value {
         .collect();
     json!({
         "cross_validation": g.cross_validation,
-        "definition": "per joint relative RMS ||tau_hat - tau|| / ||tau|| against the measured torque, each training file predicted by the fit without it (cross_validation = run) or each time block by the fit without it (block); selected = the model --effects auto chose, after the guard's additions; t_stat = one-sided t statistic of the per-block log ratios (selected / plain) of the joint's leave-one-block-out error on the regression rows; the guard adds a joint's missing plain terms only when the plain fit is better pooled and t_stat > t_crit (level alpha, Bonferroni over the joints)",
+        "definition": "per joint relative RMS ||tau_hat - tau|| / ||tau|| against the measured torque, each training file predicted by the fit without it (cross_validation = run) or each time block by the fit without it (block); selected = the model --effects auto chose, after the guard's additions; t_stat = one-sided t statistic of the per-block log ratios (selected / plain) of the joint's leave-one-block-out error on the regression rows; the guard adds a joint's missing plain terms when the plain fit is better pooled and t_stat > t_crit (level alpha, Bonferroni over the joints: block route); when it is better pooled but t_stat <= t_crit, coefficient_tests: each missing viscous, Coulomb or armature term fitted with the model, z = |coefficient| / block-jackknife sigma against z_crit (two-sided, level alpha, Bonferroni over the terms tested), added when z > z_crit and the joint's pooled held-out error falls (coefficient route)",
         "alpha": g.alpha,
         "plain_terms": g.plain_terms,
         "plain_collinear": g.plain_collinear,
