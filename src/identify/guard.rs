@@ -383,6 +383,17 @@ struct Growing {
     fixes: Vec<String>,
 }
 
+impl Growing {
+    /// Adds `terms` for the reason `fix` and re-evaluates the model on held-out data.
+    fn add(&mut self, ctx: &Ctx, terms: &[Term], fix: String) -> Result<(), RankError> {
+        self.fixes.push(fix);
+        self.terms.extend(terms);
+        self.added.extend(terms);
+        self.e_sel = ctx.heldout(&self.terms)?;
+        Ok(())
+    }
+}
+
 /// The block route (module docs): the losing joints' own plain terms (the search's missed
 /// effects), round by round; then, if a joint still loses, every other plain term — the joints
 /// share the rigid-body parameters, and a joint without its textbook terms (a weak wrist's
@@ -400,27 +411,23 @@ fn block_route(
         if missing.is_empty() {
             break;
         }
-        g.fixes.push(format!(
+        let fix = format!(
             "the plain fit predicted joint(s) {} better on held-out data (t > {t_crit:.2}): added the plain terms the search had left out there ({})",
             joints_list(&lose),
             labels(&missing)
-        ));
-        g.terms.extend(&missing);
-        g.added.extend(&missing);
-        g.e_sel = ctx.heldout(&g.terms)?;
+        );
+        g.add(ctx, &missing, fix)?;
     }
     let (lose, _) = losing(&g.e_sel, e_plain, t_crit, weak);
     if !lose.is_empty() {
         let missing = ctx.addable(&g.terms, plain, |_| true);
         if !missing.is_empty() {
-            g.fixes.push(format!(
+            let fix = format!(
                 "joint(s) {} still predicted worse with all their own plain terms: added the other joints' missing plain terms ({}), whose residuals otherwise move the shared rigid-body parameters",
                 joints_list(&lose),
                 labels(&missing)
-            ));
-            g.terms.extend(&missing);
-            g.added.extend(&missing);
-            g.e_sel = ctx.heldout(&g.terms)?;
+            );
+            g.add(ctx, &missing, fix)?;
         }
     }
     Ok(())

@@ -784,6 +784,12 @@ fn bin() -> Command {
     Command::new(env!("CARGO_BIN_EXE_dynid"))
 }
 
+/// Runs `cmd`, which must succeed (its stderr shown otherwise).
+fn succeed(cmd: &mut Command) {
+    let o = cmd.output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
 fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
     let p = dir.join(name);
     std::fs::write(&p, text).unwrap();
@@ -1212,28 +1218,26 @@ fn tiago_joint3_gets_its_coulomb_friction_from_the_coefficient_route() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../data/real/tiago_figaroh");
     let dir = tempfile::tempdir().unwrap();
     let arm_dir = dir.path().join("arm");
-    let o = bin()
-        .arg("import-urdf")
-        .arg(root.join("tiago.urdf"))
-        .arg("--out")
-        .arg(&arm_dir)
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    succeed(
+        bin()
+            .arg("import-urdf")
+            .arg(root.join("tiago.urdf"))
+            .arg("--out")
+            .arg(&arm_dir),
+    );
     let out = dir.path().join("report");
-    let o = bin()
-        .arg("identify")
-        .arg("--arm")
-        .arg(arm_dir.join("tiago.toml"))
-        .arg("--data")
-        .arg(root.join("fit.csv.gz"))
-        .arg("--validate")
-        .arg(root.join("holdout.csv.gz"))
-        .args(["--physical", "off", "--out"])
-        .arg(&out)
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    succeed(
+        bin()
+            .arg("identify")
+            .arg("--arm")
+            .arg(arm_dir.join("tiago.toml"))
+            .arg("--data")
+            .arg(root.join("fit.csv.gz"))
+            .arg("--validate")
+            .arg(root.join("holdout.csv.gz"))
+            .args(["--physical", "off", "--out"])
+            .arg(&out),
+    );
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
     let found: Vec<String> = json["effects_found"]
