@@ -3,7 +3,9 @@
 For each arm, one designed trajectory and K random ones, all of the same family (Fourier series + quintic boundary
 term, starting and ending at rest at q0), period, rate and limits, are simulated in MuJoCo as in `eval/suite.py`
 (its `simulate`: `mj_inverse` on the URDF `dynid export-urdf` writes, with friction, rotor inertia and offsets,
-torque noise and encoder quantisation), identified with `dynid identify` on the true effect set, and judged on
+torque noise and encoder quantisation; Coulomb friction as MuJoCo's `frictionloss`, or with `--coulomb-law sign` as
+`level · sign(q̇)` added to the torque — in `mj_inverse` the soft constraint flips about 10 ms before q̇ does at
+every reversal, see `suite.COULOMB_LAWS`), identified with `dynid identify` on the true effect set, and judged on
 common data that none of them was fitted to:
 
 - **held-out error**: `identify`'s validation error (report.json `error.after.validation.overall`, the least-squares
@@ -233,7 +235,7 @@ def check(lim: dict, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray) -> float:
 # --- one arm ----------------------------------------------------------------------------------------------------
 
 
-def spec_for(case: dict, kinds: list[str], rng: np.random.Generator, rate: float) -> dict:
+def spec_for(case: dict, kinds: list[str], rng: np.random.Generator, rate: float, coulomb_law: str) -> dict:
     """The suite's case fields for these runs: effects the design's columns model (viscous and Coulomb on every joint,
     rotor inertia (not on joint 1) and offsets on about half), sized below on the validation run; 1 % torque noise,
     18-bit encoders, positions only, no jitter or drops."""
@@ -255,6 +257,7 @@ def spec_for(case: dict, kinds: list[str], rng: np.random.Generator, rate: float
         "encoder_bits": 18,
         "noise": 0.01,
         "velocity_column": False,
+        "coulomb_law": coulomb_law,
     }
 
 
@@ -299,8 +302,8 @@ def torque_error(dynid: str, arm: str, params: Path, states: Path, truth: np.nda
     return float(np.sqrt(((pred - truth) ** 2).mean() / (truth**2).mean()))
 
 
-def run_arm(args: tuple[str, dict, int, Path, float, int]) -> dict:
-    dynid, case, k_random, root, budget, generations = args
+def run_arm(args: tuple[str, dict, int, Path, float, int, str]) -> dict:
+    dynid, case, k_random, root, budget, generations, coulomb_law = args
     import mujoco
 
     work = root / case["name"]
@@ -322,7 +325,7 @@ def run_arm(args: tuple[str, dict, int, Path, float, int]) -> dict:
     if not arm["torque"]:
         lim["tau_max"] = np.full(len(lim["q0"]), np.inf)
     rng = np.random.default_rng(case["seed"] + 17)
-    spec = spec_for(case, arm["kinds"], rng, rate)
+    spec = spec_for(case, arm["kinds"], rng, rate, coulomb_law)
 
     model = suite.load_model(mujoco, arm["urdf"])
     data = mujoco.MjData(model)
@@ -425,6 +428,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--random", type=int, default=5, help="random trajectories per arm (default 5)")
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--quick", action="store_true", help="3 arms, 3 random trajectories, a 40-generation design")
+    ap.add_argument(
+        "--coulomb-law",
+        choices=suite.COULOMB_LAWS,
+        default="mujoco",
+        help="Coulomb friction as MuJoCo's frictionloss (default) or level·sign(q̇) added to the torque",
+    )
     a = ap.parse_args(argv)
     try:
         import mujoco  # noqa: F401
@@ -435,7 +444,10 @@ def main(argv: list[str] | None = None) -> int:
     k = 3 if a.quick else a.random
     # quick: the generation count, not the clock, ends the design, so a debug build gives the same numbers
     generations, budget = (40, 600.0) if a.quick else (300, 60.0)
-    jobs = [(str(Path(a.dynid).resolve()), c, k, a.out.resolve(), budget, generations) for c in arm_cases(a.quick)]
+    jobs = [
+        (str(Path(a.dynid).resolve()), c, k, a.out.resolve(), budget, generations, a.coulomb_law)
+        for c in arm_cases(a.quick)
+    ]
     start = time.perf_counter()
     results = []
     with ProcessPoolExecutor(max_workers=a.jobs) as pool:

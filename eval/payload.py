@@ -176,7 +176,7 @@ def simulate(mujoco, spec: dict, urdf: Path, work: Path) -> dict:  # noqa: ANN00
     ident = [(t, *motion(spec, k, kinds, t)) for k in range(3)]
     q, dq, ddq = ident[0][1:]
     rms = np.sqrt((suite.inverse(mujoco, unloaded, du, q, dq, ddq) ** 2).mean(axis=0)) + 1e-9
-    effects, _ = suite.set_effects(
+    effects, _, _ = suite.set_effects(
         unloaded, random_effects(np.random.default_rng(spec["effect_seed"]), n), *ident[0][1:], rms
     )
     suite.set_effects(loaded, effects, q, dq, ddq, rms)

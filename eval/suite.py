@@ -205,6 +205,13 @@ def case_spec(seed: int, quick: bool = False, extended: bool = False) -> dict:
 # --- simulation (MuJoCo) ----------------------------------------------------------------------------------------
 
 
+# How a case's Coulomb friction reaches the torque. "mujoco": MuJoCo's `frictionloss`. In `mj_inverse` that is a soft
+# constraint whose sign follows q̇ + τ·q̈ (τ ≈ half its solref time constant, 0.01 s by default), not q̇: a 1-DOF hinge
+# with frictionloss 1 gives the full +1 at q̇ = 0, q̈ = 5 and 0.63 at q̇ = 0.001, q̈ = 0, so at every reversal the
+# friction flips about 10 ms early. "sign": the textbook `level · sign(q̇)` on the exact motion, added to the torque.
+COULOMB_LAWS = ["mujoco", "sign"]
+
+
 def column(effect: str, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray) -> np.ndarray:
     return {"viscous": dq, "coulomb": np.sign(dq), "armature": ddq, "spring": q, "offset": np.ones_like(q)}[effect]
 
@@ -227,10 +234,19 @@ def inverse(mujoco, model, data, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray)
     return tau
 
 
-def set_effects(model, spec_effects: list[dict], q: np.ndarray, dq: np.ndarray, ddq: np.ndarray, rms: np.ndarray):  # noqa: ANN001, ANN201
+def set_effects(  # noqa: ANN201
+    model,  # noqa: ANN001
+    spec_effects: list[dict],
+    q: np.ndarray,
+    dq: np.ndarray,
+    ddq: np.ndarray,
+    rms: np.ndarray,
+    coulomb_law: str = "mujoco",
+):
     """Sizes each effect of `spec_effects` (a share of the joint's rigid torque RMS `rms` along q, dq, ddq, or an
-    absolute `coefficient`) and gives MuJoCo the joint effects; returns the effects with their coefficients and
-    the constant offsets (added to the recorded torque)."""
+    absolute `coefficient`) and gives MuJoCo the joint effects; returns the effects with their coefficients, the
+    constant offsets and the Coulomb levels to add as `level · sign(q̇)` (all zero unless `coulomb_law` is "sign": then
+    Coulomb friction is added to the recorded torque instead of MuJoCo's `frictionloss`, see `COULOMB_LAWS`)."""
     effects = []
     for e in spec_effects:
         j = e["joint"] - 1
@@ -244,18 +260,20 @@ def set_effects(model, spec_effects: list[dict], q: np.ndarray, dq: np.ndarray, 
         effects.append({**e, "coefficient": coef})
         if e["effect"] == "viscous":
             model.dof_damping[j] = coef
-        elif e["effect"] == "coulomb":
+        elif e["effect"] == "coulomb" and coulomb_law == "mujoco":
             model.dof_frictionloss[j] = coef
         elif e["effect"] == "armature":
             model.dof_armature[j] = coef
         elif e["effect"] == "spring":
             model.jnt_stiffness[j] = coef
             model.qpos_spring[j] = 0.0
-    offset = np.zeros(model.nv)
+    offset, coulomb = np.zeros(model.nv), np.zeros(model.nv)
     for e in effects:
         if e["effect"] == "offset":
             offset[e["joint"] - 1] = e["coefficient"]
-    return effects, offset
+        elif e["effect"] == "coulomb" and coulomb_law == "sign":
+            coulomb[e["joint"] - 1] = e["coefficient"]
+    return effects, offset, coulomb
 
 
 def new_shape(e: dict, run: int, t: np.ndarray, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
@@ -328,12 +346,12 @@ def simulate(mujoco, spec: dict, urdf: Path, work: Path, runs: list | None = Non
     # Size each effect on run 1's rigid torque, then give MuJoCo the joint effects.
     t, q, dq, ddq = runs[0]
     rms = np.sqrt((inverse(mujoco, model, data, q, dq, ddq) ** 2).mean(axis=0)) + 1e-9
-    effects, offset = set_effects(model, spec["effects"], q, dq, ddq, rms)
+    effects, offset, coulomb = set_effects(model, spec["effects"], q, dq, ddq, rms, spec.get("coulomb_law", "mujoco"))
     added, extra = new_torques(spec.get("new_effects", []), runs, rms)
     effects += added
     paths = []
     for r, (t, q, dq, ddq) in enumerate(runs):
-        tau = inverse(mujoco, model, data, q, dq, ddq) + offset + extra[r]
+        tau = inverse(mujoco, model, data, q, dq, ddq) + offset + coulomb * np.sign(dq) + extra[r]
         paths.append(write_log(spec, rng, t, q, dq, tau, work / f"run{r + 1}.csv"))
     return paths, effects
 
