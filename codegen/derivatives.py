@@ -45,3 +45,14 @@ def inverse_dynamics_jacobians(sym: Symbols, tau: list[Scalar]) -> tuple[ca.SX, 
     inputs, seeds = joint_tangents(sym)
     J = ca.jtimes(ca.vertcat(*[ca.SX(t) for t in tau]), inputs, seeds)
     return J[:, :n], J[:, n:]
+
+
+def inverse_dynamics_jvp(sym: Symbols, tau: list[Scalar]) -> tuple[ca.SX, ca.SX]:
+    """``(d, ∂τ/∂x · d)``: the directional derivative of the inverse-dynamics expressions ``tau``
+    along ``d = (δq, δq̇)`` (``2n`` symbols), at fixed ``q̈`` — one forward sweep for any direction,
+    so that a kernel evaluating it on eight unit directions at once (one per lane) gives eight
+    columns of ``(∂τ/∂q, ∂τ/∂q̇)``."""
+    n = sym.dof
+    inputs, seeds = joint_tangents(sym)
+    d = ca.SX.sym("d", 2 * n)
+    return d, ca.jtimes(ca.vertcat(*[ca.SX(t) for t in tau]), inputs, ca.mtimes(seeds, d))

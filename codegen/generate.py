@@ -6,7 +6,7 @@ import hashlib
 import os
 import tempfile
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import casadi as ca
@@ -15,7 +15,7 @@ import numpy as np
 from . import GENERATOR_VERSION
 from .algebra import Scalar
 from .base_params import BaseParams, analyse, param_names, random_states
-from .derivatives import inverse_dynamics_jacobians
+from .derivatives import inverse_dynamics_jacobians, inverse_dynamics_jvp
 from .dh import DhTable, load
 from .emit_rust import emit
 from .forward_dynamics import inverse, ltdl, matmul, solve
@@ -36,6 +36,19 @@ class Kernel:
     inputs: list[str]  # which of trig/q/dq/ddq/theta the CasADi function takes, in order
     outputs: list[Scalar]
     out_len: str  # Rust length expression of `out`
+    parts: list[Part] = field(default_factory=list)  # helpers of a compact scalar form (FORMAT.md)
+
+
+@dataclass
+class Part:
+    """A straight-line helper of a kernel's compact scalar form: `fn <kernel>_part_<name>`, its
+    arguments `(name, Rust length, CasADi vector)` before `out` (the joints' cosines and sines
+    passed in as `t`, not computed), and its outputs."""
+
+    name: str
+    args: list[tuple[str, str, ca.SX]]
+    outputs: list[Scalar]
+    out_len: str
 
 
 @dataclass
@@ -84,6 +97,26 @@ def derive(arm: DhTable, base: BaseParams) -> tuple[Symbols, ca.SX, list[Kernel]
     # ∂q̈/∂x = −M⁻¹ ∂τ/∂x at q̈ = FD(q, q̇, τ): the same Jacobians with q̈ replaced by its expression.
     J_fd = ca.substitute([J_q, J_dq], [sym.ddq], [ca.vertcat(*[ca.SX(x) for x in qdd])])
     dqdd = [matmul(M_inv, [[-J[r, c] for c in range(n)] for r in range(n)]) for J in J_fd]
+    # The compact scalar form of the same (see `_compact_fdd`): q̈ and M⁻¹ in one straight-line
+    # part, the columns of ∂τ/∂x from a directional-derivative part evaluated eight directions
+    # at a time.
+    d, jvp = inverse_dynamics_jvp(sym, tau)
+    t = ("t", "2 * DOF", sym.trig)
+    fdd_parts = [
+        Part(
+            "fdm",
+            [t, ("q", "DOF", sym.q), ("dq", "DOF", sym.dq), ("tau", "DOF", sym.tau), ("theta", "NB", theta)],
+            [*qdd, *[M_inv[r][c] for r in range(n) for c in range(n)]],
+            "DOF + DOF * DOF",
+        ),
+        Part(
+            "jvp",
+            [t, ("q", "DOF", sym.q), ("dq", "DOF", sym.dq), ("ddq", "DOF", sym.ddq), ("theta", "NB", theta)]
+            + [("d", "2 * DOF", d)],
+            [jvp[i] for i in range(n)],
+            "DOF",
+        ),
+    ]
 
     def flat(*mats) -> list[Scalar]:
         return [m[r][c] if isinstance(m, list) else m[r, c] for m in mats for r in range(n) for c in range(n)]
@@ -109,6 +142,7 @@ def derive(arm: DhTable, base: BaseParams) -> tuple[Symbols, ca.SX, list[Kernel]
             ["trig", *k.inputs],
             outputs[k.name],
             k.out_len,
+            fdd_parts if k.name == "forward_dynamics_derivatives" else [],
         )
         for k in KERNELS
     ]
@@ -134,19 +168,8 @@ def check_against_lagrange(arm: DhTable, sym: Symbols, Y: list[Scalar], samples:
     return worst
 
 
-def emit_kernel(arm: DhTable, sym: Symbols, theta: ca.SX, k: Kernel) -> Emitted:
-    vectors = {"trig": sym.trig, "q": sym.q, "dq": sym.dq, "ddq": sym.ddq, "tau": sym.tau, "theta": theta}
-    out = ca.cse(_sx(k.outputs))
-    f = ca.Function(k.name, [vectors[v] for v in k.inputs], [out])
-
-    def name(inp: int, nz: int) -> str:
-        which = k.inputs[inp]
-        if which == "trig":
-            return f"{'c' if nz % 2 == 0 else 's'}{nz // 2 + 1}"
-        return f"{which}[{nz}]"
-
-    body = emit(f, name, len(k.outputs))
-    trig_joints = sorted({nz // 2 for inp, nz in body.used if k.inputs[inp] == "trig"})
+def _trig_prelude(arm: DhTable, trig_joints: list[int]) -> list[str]:
+    """`let (s<i>, c<i>) = ...` for the joints whose cosine or sine a kernel reads."""
 
     def arg(i: int) -> str:
         off = arm.joints[i].theta
@@ -167,11 +190,134 @@ def emit_kernel(arm: DhTable, sym: Symbols, theta: ca.SX, k: Kernel) -> Emitted:
         pairs = ", ".join(f"(s{i + 1}, c{i + 1})" for i in js)
         args = ", ".join(arg(i) for i in js)
         pre.append(f"let [{pairs}] = crate::trig::sin_cos{len(js)}({args});")
+    return pre
+
+
+def _emit_part(kernel: str, part: Part) -> tuple[str, Emitted]:
+    """`fn <kernel>_part_<name>`: straight-line, as the kernels, with `t` an argument."""
+    f = ca.Function(part.name, [v for _, _, v in part.args], [ca.cse(_sx(part.outputs))])
+    body = emit(f, lambda i, nz: f"{part.args[i][0]}[{nz}]", len(part.outputs))
+    sig = ", ".join([f"{a}: &[f64; {ln}]" for a, ln, _ in part.args] + [f"out: &mut [f64; {part.out_len}]"])
+    name = f"{kernel}_part_{part.name}"
+    lines = [f"#[inline]\npub fn {name}({sig}) {{", *[f"    {ln}" for ln in body.lines], "}"]
+    trig = sorted({nz // 2 for inp, nz in body.used if part.args[inp][0] == "t"})
+    return ",".join(map(str, trig)), Emitted(name, "\n".join(lines), body.mul, body.add)
+
+
+# Directions per call of the directional-derivative part: one per lane of an AVX-512 register.
+WIDE = 8
+# A kernel gets its compact scalar form from this many operations of the fused one (about 8.5
+# bytes of machine code each, against a 32 KiB L1i). Measured: Panda (8683) 1026-1043 ns against
+# 1256-1317 fused; PUMA 560 (5112) 915-1342 against 717-721, slower, so it keeps the fused kernel.
+COMPACT_MIN_OPS = 6000
+
+
+def _compact(arm: DhTable, k: Kernel, fused: str) -> str:
+    """`forward_dynamics_derivatives` as less code per call (docs/derivatives.md: the fused kernel
+    is bound by instruction fetch). With AVX-512: `q̈` and `M⁻¹` from one straight-line part, the
+    columns of `(∂τ/∂q, ∂τ/∂q̇)` from the directional-derivative part of inverse dynamics evaluated
+    on eight unit directions at once (its lane copy, one direction per lane, `⌈2n/8⌉` calls), then
+    `∂q̈/∂x = −M⁻¹ ∂τ/∂x` in a loop. Without AVX-512, and in the lane forms, the fused
+    straight-line kernel `<kernel>_fused`."""
+    n, name = arm.dof, k.name
+    parts = [_emit_part(name, p) for p in k.parts]
+    used = sorted({int(j) for trig, _ in parts for j in trig.split(",") if j})
+    fdm, jvp = (e for _, e in parts)
+    calls = -(-2 * n // WIDE)
+    t = ", ".join(f"c{i + 1}, s{i + 1}" if i in used else "0.0, 0.0" for i in range(n))
+    sig = ", ".join(k.args + [f"out: &mut [f64; {k.out_len}]"])
+    args = "q, dq, tau, theta, out"
+    cfg = '#[cfg(all(target_arch = "x86_64", target_feature = "fma"))]'
+    ops = (
+        f"part_fdm {fdm.mul} / {fdm.add}, part_jvp {jvp.mul} / {jvp.add} ({calls} calls of {WIDE} lanes), "
+        f"and the {2 * n}·{n}² products"
+    )
+    head = f"""/// Compact scalar form ({ops}): with AVX-512 `{name}_wide`, else `{name}_fused`.
+#[inline]
+pub fn {name}({sig}) {{
+    {cfg}
+    if crate::pack::wide::avx512() {{
+        // SAFETY: `avx512()` checked that the CPU has AVX-512F.
+        return unsafe {{ {name}_wide({args}) }};
+    }}
+    {name}_fused({args})
+}}
+
+/// `q̈` and `M⁻¹` (`{name}_part_fdm`), `∂τ/∂x` eight unit directions per call
+/// (`{name}_part_jvp_lanes`), `∂q̈/∂x = −M⁻¹ ∂τ/∂x`.
+{cfg}
+#[target_feature(enable = "avx512f")]
+fn {name}_wide({sig}) {{
+    use crate::pack::wide::{{as_zmm, as_zmm_mut, Pack8, Zmm}};
+"""
+    body = [f"    {ln}" for ln in _trig_prelude(arm, used)]
+    body += [
+        f"    let t = [{t}];",
+        "    let mut a = [0.0; DOF + DOF * DOF];",
+        f"    {name}_part_fdm(&t, q, dq, tau, theta, &mut a);",
+        "    let ddq: [f64; DOF] = core::array::from_fn(|i| a[i]);",
+        "    let (t, q, dq, ddq, theta) = (t.map(Pack8::splat), q.map(Pack8::splat), dq.map(Pack8::splat),"
+        " ddq.map(Pack8::splat), theta.map(Pack8::splat));",
+        "    // j[r][c] = ∂τ_r/∂x_c, x = (q, q̇).",
+        "    let mut j = [[0.0; 2 * DOF]; DOF];",
+        f"    for g in 0..{calls} {{",
+        "        let d: [Pack8; 2 * DOF] = core::array::from_fn(|c| {",
+        f"            Pack8::new(core::array::from_fn(|l| if c == {WIDE} * g + l {{ 1.0 }} else {{ 0.0 }}))",
+        "        });",
+        "        let mut col = [Pack8::splat(0.0); DOF];",
+        "        // SAFETY: compiled with AVX-512F, called only where the CPU has it.",
+        "        unsafe {",
+        f"            {name}_part_jvp_lanes::<Zmm, true>(",
+        "                as_zmm(&t), as_zmm(&q), as_zmm(&dq), as_zmm(&ddq), as_zmm(&theta), as_zmm(&d),",
+        "                as_zmm_mut(&mut col),",
+        "            );",
+        "        }",
+        "        for r in 0..DOF {",
+        "            let v = col[r].to_array();",
+        f"            for l in 0..{WIDE}.min(2 * DOF - {WIDE} * g) {{",
+        f"                j[r][{WIDE} * g + l] = v[l];",
+        "            }",
+        "        }",
+        "    }",
+        "    for r in 0..DOF {",
+        "        for c in 0..2 * DOF {",
+        "            let mut acc = 0.0;",
+        "            for k in 0..DOF {",
+        "                acc = crate::trig::mul_add(a[DOF + r * DOF + k], j[k][c], acc);",
+        "            }",
+        "            out[(c / DOF) * DOF * DOF + r * DOF + c % DOF] = -acc;",
+        "        }",
+        "    }",
+        "    out[2 * DOF * DOF..].copy_from_slice(&a[DOF..]);",
+        "}",
+    ]
+    fused = fused.replace(f"pub fn {name}(", f"pub fn {name}_fused(", 1)
+    return "\n\n".join([head + "\n".join(body), fused, fdm.code, jvp.code])
+
+
+def emit_kernel(arm: DhTable, sym: Symbols, theta: ca.SX, k: Kernel) -> Emitted:
+    vectors = {"trig": sym.trig, "q": sym.q, "dq": sym.dq, "ddq": sym.ddq, "tau": sym.tau, "theta": theta}
+    out = ca.cse(_sx(k.outputs))
+    f = ca.Function(k.name, [vectors[v] for v in k.inputs], [out])
+
+    def name(inp: int, nz: int) -> str:
+        which = k.inputs[inp]
+        if which == "trig":
+            return f"{'c' if nz % 2 == 0 else 's'}{nz // 2 + 1}"
+        return f"{which}[{nz}]"
+
+    body = emit(f, name, len(k.outputs))
+    trig_joints = sorted({nz // 2 for inp, nz in body.used if k.inputs[inp] == "trig"})
+
+    pre = _trig_prelude(arm, trig_joints)
     sig = ", ".join(k.args + [f"out: &mut [f64; {k.out_len}]"])
     lines = [f"#[inline]\npub fn {k.name}({sig}) {{"]
     lines += [f"    {ln}" for ln in pre + body.lines]
     lines.append("}")
-    return Emitted(k.name, "\n".join(lines), body.mul, body.add)
+    code = "\n".join(lines)
+    if k.parts and body.mul + body.add >= COMPACT_MIN_OPS:
+        code = _compact(arm, k, code)
+    return Emitted(k.name, code, body.mul, body.add)
 
 
 def _str_array(xs: list[str]) -> str:

@@ -540,6 +540,13 @@ impl Case {
         kernel.call(self.arm, q, dq, ddq, th, out);
     }
 
+    /// [`Case::call_generated`] in the straight-line form the lane copies are made of
+    /// (`Model::<kernel>_straight`).
+    pub fn call_straight(&self, kernel: Kernel, k: usize, out: &mut [f64]) {
+        let s = &self.pool;
+        kernel.call_straight(self.arm, s.q(k), s.dq(k), s.ddq(k), &self.theta[..], out);
+    }
+
     /// The lane-batched generated `kernel` on pool samples `LANES·c … LANES·c + LANES − 1`
     /// (`c` wraps around the pool; inputs through `black_box`).
     #[inline]
@@ -660,7 +667,7 @@ impl Case {
         (0..4).all(|c| {
             (0..width).all(|l| {
                 lane(c, l, &mut got);
-                self.call_generated(kernel, c * width + l, &mut want);
+                self.call_straight(kernel, c * width + l, &mut want);
                 want.iter()
                     .zip(&got)
                     .all(|(a, b)| a.to_bits() == b.to_bits())

@@ -78,11 +78,12 @@ fn zero_store(expr: &Expr) -> Option<Expr> {
         .then(|| (*a.left).clone())
 }
 
-/// `fn name(..f64..)` → `fn name_lanes<L: Lane, const ZEROS: bool>(..L..)` (`ZEROS`: whether
-/// the constant-zero outputs are written).
-pub fn lane_copy(f: &ItemFn) -> ItemFn {
+/// `fn name(..f64..)` → `fn <kernel>_lanes<L: Lane, const ZEROS: bool>(..L..)` (`ZEROS`: whether
+/// the constant-zero outputs are written), `kernel` being `name`, or the kernel whose
+/// `<kernel>_fused` `name` is.
+pub fn lane_copy(f: &ItemFn, kernel: &str) -> ItemFn {
     let mut g = f.clone();
-    g.sig.ident = format_ident!("{}_lanes", f.sig.ident);
+    g.sig.ident = format_ident!("{}_lanes", kernel);
     ToLanes.visit_item_fn_mut(&mut g);
     g.sig.generics = parse_quote!(<L: crate::pack::Lane, const ZEROS: bool>);
     g.attrs.retain(|a| !a.path().is_ident("inline"));

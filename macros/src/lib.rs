@@ -152,17 +152,10 @@ fn expand(args: &ArmArgs) -> Result<proc_macro2::TokenStream, String> {
     check_items(&arm, &gen_rel, &file.items, &kernels, &fix)?;
 
     let items = &file.items;
-    // Lane-batched copies of the kernels (not of `base_params`, which runs once per fit).
-    let lane_fns: Vec<syn::ItemFn> = items
+    let lane_fns = lane_fns(items, &kernels);
+    let impl_fns = kernels
         .iter()
-        .filter_map(|item| match item {
-            Item::Fn(f) if kernels.iter().any(|k| f.sig.ident == k.name) => {
-                Some(lanes::lane_copy(f))
-            }
-            _ => None,
-        })
-        .collect();
-    let impl_fns = kernels.iter().map(impl_methods);
+        .map(|k| impl_methods(k, defines(items, &format!("{}_fused", k.name))));
     let manifest_str = path_str(&root.join(manifest::PATH));
     let module = format_ident!("{}", arm);
     let type_name = format_ident!("{}", hash::camel_case(&arm));
@@ -343,7 +336,7 @@ fn check_items(
     for f in &fns {
         let name = f.sig.ident.to_string();
         let Some(k) = kernels.iter().find(|k| k.name == name) else {
-            if name == BASE_PARAMS_FN {
+            if name == BASE_PARAMS_FN || part_of(&name, kernels).is_some() {
                 continue;
             }
             return Err(format!(
@@ -385,13 +378,75 @@ fn check_items(
     }
 }
 
+/// Lane-batched copies of the kernels (not of `base_params`, which runs once per fit): of
+/// `<kernel>_fused` where a kernel has a compact scalar form, and of its `<kernel>_part_*`.
+fn lane_fns(items: &[Item], kernels: &[KernelSpec]) -> Vec<syn::ItemFn> {
+    items
+        .iter()
+        .filter_map(|item| {
+            let Item::Fn(f) = item else { return None };
+            let name = f.sig.ident.to_string();
+            match part_of(&name, kernels) {
+                Some((k, Part::Fused)) => Some(lanes::lane_copy(f, &k.name)),
+                Some((_, Part::Straight)) => Some(lanes::lane_copy(f, &name)),
+                Some((_, Part::Scalar)) => None,
+                None if kernels.iter().any(|k| k.name == name)
+                    && !defines(items, &format!("{name}_fused")) =>
+                {
+                    Some(lanes::lane_copy(f, &name))
+                }
+                None => None,
+            }
+        })
+        .collect()
+}
+
+/// Whether the generated file defines `fn name`.
+fn defines(items: &[Item], name: &str) -> bool {
+    items
+        .iter()
+        .any(|item| matches!(item, Item::Fn(f) if f.sig.ident == name))
+}
+
+/// What a helper of a kernel's compact scalar form is (`codegen/FORMAT.md`).
+enum Part {
+    /// `<kernel>_fused`: the straight-line kernel, the source of the lane copies.
+    Fused,
+    /// `<kernel>_part_<x>`: a straight-line helper, given a lane copy `<kernel>_part_<x>_lanes`.
+    Straight,
+    /// `<kernel>_wide`: scalar code around the parts, no lane copy.
+    Scalar,
+}
+
+/// The kernel `name` is a helper of, and which kind.
+fn part_of<'k>(name: &str, kernels: &'k [KernelSpec]) -> Option<(&'k KernelSpec, Part)> {
+    kernels.iter().find_map(|k| {
+        let rest = name.strip_prefix(k.name.as_str())?.strip_prefix('_')?;
+        match rest {
+            "fused" => Some((k, Part::Fused)),
+            "wide" => Some((k, Part::Scalar)),
+            _ if rest.starts_with("part_") => Some((k, Part::Straight)),
+            _ => None,
+        }
+    })
+}
+
 /// The `Model` methods of one kernel for a generated arm: slices → fixed-size arrays, then the
 /// generated function (and likewise for its lane copies: with and without the constant-zero
 /// outputs).
-fn impl_methods(k: &KernelSpec) -> proc_macro2::TokenStream {
+fn impl_methods(k: &KernelSpec, fused: bool) -> proc_macro2::TokenStream {
     let name = format_ident!("{}", k.name);
+    let straight = format_ident!("{}_straight", k.name);
     let args: Vec<Ident> = k.inputs.iter().map(|i| format_ident!("{}", i)).collect();
     let labels = &k.inputs;
+    // One call site per generated function (the lane copies aside), so that the scalar method
+    // is compiled as before: the straight-line form is the method itself unless a fused one exists.
+    let source = if fused {
+        let fused = format_ident!("{}_fused", k.name);
+        quote!(#fused(#(_arr(#args, #labels),)* _arr_mut(out, "out")))
+    } else {
+        quote!(self.#name(#(#args,)* out))
+    };
     let lane_methods = LANE_FORMS.iter().map(|&(suffix, zeros)| {
         let lanes = format_ident!("{}_lanes{}", k.name, suffix);
         let lanes8 = format_ident!("{}_lanes8{}", k.name, suffix);
@@ -400,6 +455,9 @@ fn impl_methods(k: &KernelSpec) -> proc_macro2::TokenStream {
     quote! {
         fn #name(&self, #(#args: &[f64],)* out: &mut [f64]) {
             #name(#(_arr(#args, #labels),)* _arr_mut(out, "out"))
+        }
+        fn #straight(&self, #(#args: &[f64],)* out: &mut [f64]) {
+            #source
         }
         #(#lane_methods)*
     }
@@ -547,9 +605,18 @@ pub fn kernel_methods(input: TokenStream) -> TokenStream {
                     );
                 }
             });
+            let straight = format_ident!("{}_straight", k.name);
+            let straight_doc = format!(
+                "The straight-line kernel the lane copies of [`Model::{}`] are made of, which they \
+                 equal bit for bit: the kernel itself, or, where it has a compact scalar form \
+                 (`codegen/FORMAT.md`), the fused one (the same values to rounding).",
+                k.name
+            );
             quote! {
                 #[doc = #doc]
                 fn #name(&self, #(#args: &[f64],)* out: &mut [f64]);
+                #[doc = #straight_doc]
+                fn #straight(&self, #(#args: &[f64],)* out: &mut [f64]);
                 #(#forms)*
             }
         });
@@ -688,6 +755,11 @@ fn kernel_forms() -> Vec<Form> {
         quote!(f64),
         String::new(),
         "Calls this kernel of `model`; inputs it does not take are ignored (`ddq`: q̈, or τ for the kernels that take τ; `theta`: base parameters).".to_string(),
+    ), (
+        format_ident!("call_straight"),
+        quote!(f64),
+        "_straight".to_string(),
+        "Calls the straight-line form of this kernel of `model`, which its lane copies equal bit for bit (see `Model::<kernel>_straight`).".to_string(),
     )];
     for (suffix, zeros) in LANE_FORMS {
         let skip = if zeros {

@@ -160,6 +160,30 @@ fn inverse_dynamics_derivatives_are_the_derivatives_of_inverse_dynamics() {
     }
 }
 
+/// The compact scalar form of `forward_dynamics_derivatives` (with AVX-512: `q̈`, `M⁻¹` and
+/// eight directional derivatives of inverse dynamics per call; `codegen/FORMAT.md`) is the fused
+/// straight-line kernel to rounding: 1e-12 relative to the largest entry.
+#[test]
+fn forward_dynamics_derivatives_compact_form_is_the_fused_kernel() {
+    let mut r = rng(44);
+    for c in cases(4400) {
+        let (m, n) = (c.m, c.m.dof());
+        for _ in 0..SAMPLES {
+            let (q, dq, _) = random_state(&mut r, n);
+            let tau: Vec<f64> = random_state(&mut r, n).2.iter().map(|x| 4.0 * x).collect();
+            let (mut d, mut fused) = (vec![0.0; 3 * n * n], vec![0.0; 3 * n * n]);
+            m.forward_dynamics_derivatives(&q, &dq, &tau, &c.theta, &mut d);
+            m.forward_dynamics_derivatives_straight(&q, &dq, &tau, &c.theta, &mut fused);
+            assert_close(
+                &d,
+                &fused,
+                1e-12,
+                &format!("{}: compact vs fused", m.name()),
+            );
+        }
+    }
+}
+
 #[test]
 fn forward_dynamics_derivatives_are_the_derivatives_of_forward_dynamics() {
     let mut r = rng(43);

@@ -174,7 +174,7 @@ fn lane_kernels_equal_the_scalar_kernels_bit_for_bit() {
                 let mut out = vec![Pack::default(); kernel.out_len(n, np, nb)];
                 kernel.call_lanes(m, &q, &dq, &ddq, &th, &mut out);
                 check(kernel.name(), &out, &|l, o| {
-                    kernel.call(m, &s[l][0], &s[l][1], &s[l][2], &s[l][3], o)
+                    kernel.call_straight(m, &s[l][0], &s[l][1], &s[l][2], &s[l][3], o)
                 });
             }
         }
@@ -225,7 +225,7 @@ fn eight_lane_kernels_equal_the_scalar_kernels_bit_for_bit_in_both_forms() {
                     kernel.call_lanes8(m, &q, &dq, &ddq, &th, &mut out);
                     let mut want = vec![0.0; len];
                     for (l, s) in samples.iter().enumerate() {
-                        kernel.call(m, &s[0], &s[1], &s[2], &s[3], &mut want);
+                        kernel.call_straight(m, &s[0], &s[1], &s[2], &s[3], &mut want);
                         let got: Vec<f64> = out.iter().map(|p| p.to_array()[l]).collect();
                         let same = want
                             .iter()
@@ -255,8 +255,10 @@ fn constant_zero_outputs(arm: &str, kernel: &str) -> Vec<usize> {
         concat!(env!("CARGO_MANIFEST_DIR"), "/..")
     );
     let src = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
+    // The lane copies are made of `<kernel>_fused` where the kernel has a compact scalar form.
     let start = src
-        .find(&format!("\npub fn {kernel}("))
+        .find(&format!("\npub fn {kernel}_fused("))
+        .or_else(|| src.find(&format!("\npub fn {kernel}(")))
         .unwrap_or_else(|| panic!("{path}: no `pub fn {kernel}`"));
     let body = &src[start..];
     let body = &body[..body.find("\n}\n").expect("the function's closing brace")];
@@ -307,7 +309,7 @@ fn skip_zeros_forms_leave_exactly_the_constant_zeros_unwritten() {
             checked_zeros += zeros.len();
             let mut want = vec![vec![0.0; len]; WIDE_LANES];
             for (l, s) in samples.iter().enumerate() {
-                kernel.call(m, &s[0], &s[1], &s[2], &s[3], &mut want[l]);
+                kernel.call_straight(m, &s[0], &s[1], &s[2], &s[3], &mut want[l]);
             }
             // (width, form, whether the zeros are left unwritten, lanes of each output)
             let mut runs: Vec<(usize, &str, bool, Vec<Vec<f64>>)> = Vec::new();
@@ -402,6 +404,7 @@ fn kernel_with_visits_the_kind_it_was_called_on() {
             assert_eq!(bits(&got), bits(&want), "{} {}", m.name(), kernel.name());
             let mut first = vec![0.0; len];
             lane(&lanes, 0, &mut first);
+            kernel.call_straight(m, &s[0], &s[1], &s[2], &s[3], &mut want);
             assert_eq!(
                 bits(&first),
                 bits(&want),
