@@ -17,8 +17,10 @@
 //! a lane type `L` ([`Lane`]: [`Pack`] here), each float literal `c` with `L::splat(c)`, each
 //! constant-zero output with [`store_zero`] and the trigonometry with `L::sin_cos` ([`sin_cos`]
 //! for [`Pack`]: the same polynomial as [`crate::trig::sin_cos`], lane by lane); nothing else changes, so
-//! every lane computes bit for bit what the scalar kernel computes for that sample (the tests
-//! check equality, not closeness).
+//! every lane computes bit for bit what the straight-line scalar kernel computes for that sample
+//! (the tests check equality, not closeness). A kernel with a compact scalar form (the Panda's
+//! forward-dynamics derivatives, `codegen/FORMAT.md`) has its lanes equal its straight-line
+//! (`_straight`) form, and its scalar method to rounding.
 //!
 //! Eight samples per call where the CPU has AVX-512: [`wide`] (the same generic lane copies,
 //! instantiated for 512-bit registers and chosen at run time).

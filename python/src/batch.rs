@@ -3,7 +3,8 @@
 //! and times the very code the bindings run).
 //!
 //! Generated arms run the lane-batched kernels ([`dynid::pack`]: [`LANES`] samples per call,
-//! each lane bit for bit the scalar kernel's result); the last `N mod LANES` samples go through
+//! each lane bit for bit the straight-line scalar kernel's result, to rounding where the
+//! scalar method has a compact form: `codegen/FORMAT.md`); the last `N mod LANES` samples go through
 //! the scalar kernel. Arms without generated kernels run the hand-written reference dynamics
 //! ([`dynid::reference`]) sample by sample, the base regressor through the numerical base of
 //! [`BaseModel`]. Work is split into chunks of [`CHUNK`] samples, spread over rayon's threads.
