@@ -376,6 +376,7 @@ fn losing(sel: &Heldout, plain: &Heldout, t_crit: f64, weak: &[usize]) -> (Vec<u
 }
 
 /// The guarded model as it grows: its terms, their held-out errors, what was added and why.
+#[derive(Clone)]
 struct Growing {
     terms: Vec<Term>,
     e_sel: Heldout,
@@ -384,13 +385,15 @@ struct Growing {
 }
 
 impl Growing {
-    /// Adds `terms` for the reason `fix` and re-evaluates the model on held-out data.
-    fn add(&mut self, ctx: &Ctx, terms: &[Term], fix: String) -> Result<(), RankError> {
-        self.fixes.push(fix);
-        self.terms.extend(terms);
-        self.added.extend(terms);
-        self.e_sel = ctx.heldout(&self.terms)?;
-        Ok(())
+    /// The model with `terms` added for the reason `fix`, re-evaluated on held-out data (the
+    /// caller keeps it or not).
+    fn with(&self, ctx: &Ctx, terms: &[Term], fix: String) -> Result<Growing, RankError> {
+        let mut g = self.clone();
+        g.fixes.push(fix);
+        g.terms.extend(terms);
+        g.added.extend(terms);
+        g.e_sel = ctx.heldout(&g.terms)?;
+        Ok(g)
     }
 }
 
@@ -416,7 +419,7 @@ fn block_route(
             joints_list(&lose),
             labels(&missing)
         );
-        g.add(ctx, &missing, fix)?;
+        *g = g.with(ctx, &missing, fix)?;
     }
     let (lose, _) = losing(&g.e_sel, e_plain, t_crit, weak);
     if !lose.is_empty() {
@@ -427,7 +430,7 @@ fn block_route(
                 joints_list(&lose),
                 labels(&missing)
             );
-            g.add(ctx, &missing, fix)?;
+            *g = g.with(ctx, &missing, fix)?;
         }
     }
     Ok(())
@@ -486,21 +489,17 @@ fn coefficient_route(
         if pass.is_empty() {
             continue;
         }
-        let mut with = g.terms.clone();
-        with.extend(&pass);
-        let e = ctx.heldout(&with)?;
-        if e.pooled[j] < g.e_sel.pooled[j] * (1.0 - TIE) {
+        let fix = format!(
+            "the plain fit predicted joint {} better on held-out data, not block after block (t ≤ {t_crit:.2}), but the coefficient of {} fitted with the model is non-zero beyond chance (|x| / σ > {z_crit:.2}, block jackknife) and adding it lowers the joint's held-out error: added",
+            j + 1,
+            labels(&pass)
+        );
+        let next = g.with(ctx, &pass, fix)?;
+        if next.e_sel.pooled[j] < g.e_sel.pooled[j] * (1.0 - TIE) {
             for (_, test) in &mut tests[first..] {
                 test.added = pass.iter().any(|c| c.label() == test.term);
             }
-            g.fixes.push(format!(
-                "the plain fit predicted joint {} better on held-out data, not block after block (t ≤ {t_crit:.2}), but the coefficient of {} fitted with the model is non-zero beyond chance (|x| / σ > {z_crit:.2}, block jackknife) and adding it lowers the joint's held-out error: added",
-                j + 1,
-                labels(&pass)
-            ));
-            g.terms = with;
-            g.added.extend(&pass);
-            g.e_sel = e;
+            *g = next;
         }
     }
     Ok(tests)
