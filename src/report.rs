@@ -202,6 +202,12 @@ pub fn json_report(o: &Outcome, command: &str) -> Value {
         "time_blocks": o.blocks,
         "friction_scales": o.scales,
         "cutoff_scan": o.cutoff_scan,
+        "coulomb_width": o.coulomb_width.as_ref().map(|w| json!({
+            "cross_validation": w.cross_validation,
+            "chosen_fraction": w.chosen,
+            "trials": w.trials,
+            "definition": "the Coulomb column is tanh(dq / v), v = fraction x the joint's RMS training velocity; each fraction refits the model, judged by the geometric mean over the compared joints of the held-out relative RMS error (by run, or by block with one file); the default 0.01 is kept unless another lowers it by more than 0.1 %",
+        })),
         "estimator": "weighted least squares (per-joint 1/sigma), incremental QR, parallel zero-phase filtering of tau and regressor; std by block jackknife; then the physically consistent estimate closest to it in the same weighted metric (`physical`)",
         "physical": physical::json(o),
         "guard": guard::json(o),
@@ -609,6 +615,7 @@ fn data_section(m: &mut String, o: &Outcome) {
             );
         }
     }
+    width_section(m, o);
     let sm = o.train.first().map(|f| f.smoothing).unwrap_or_default();
     let _ = writeln!(
         m,
@@ -621,6 +628,39 @@ fn data_section(m: &mut String, o: &Outcome) {
             "the rows of the estimated states (right when the motion is smooth and the torque jumps, e.g. Coulomb friction under a stiff position loop)"
         }
     );
+}
+
+/// The Coulomb width scan's table (nothing when the model was not scanned).
+fn width_section(m: &mut String, o: &Outcome) {
+    let Some(w) = &o.coulomb_width else {
+        return;
+    };
+    let _ = writeln!(
+        m,
+        "\nCoulomb width: the Coulomb column is tanh(q̇ / v), v a fraction of each joint's RMS training velocity; each width refitted the model and was judged on held-out training data (by {}; geometric mean of the joints' errors). Kept: {}{}.\n",
+        w.cross_validation,
+        w.chosen,
+        if w.chosen == crate::effects::Scales::COULOMB_FRACTION {
+            " (the default)"
+        } else {
+            ""
+        }
+    );
+    let _ = writeln!(
+        m,
+        "| v / RMS velocity | held-out error per joint | geometric mean |"
+    );
+    let _ = writeln!(m, "|---|---|---|");
+    for t in &w.trials {
+        let per: Vec<String> = t.heldout.iter().map(|e| pct(*e)).collect();
+        let _ = writeln!(
+            m,
+            "| {} | {} | {} |",
+            t.fraction,
+            per.join(" / "),
+            pct(t.score)
+        );
+    }
 }
 
 fn bounds(pts: impl Iterator<Item = (f64, f64)>) -> (f64, f64, f64, f64) {

@@ -46,6 +46,10 @@ pub struct Args {
     /// e.g. `0.5,filtered`.
     #[arg(long, default_value = "auto")]
     pub smoothing: String,
+    /// Coulomb friction's smoothing, tanh(q̇ / v): `auto` (v chosen by held-out error from 0.3 %,
+    /// 1 % and 3 % of each joint's RMS velocity) or that fraction, e.g. `0.01`.
+    #[arg(long, default_value = "auto")]
+    pub coulomb_width: String,
     /// Derivative estimator.
     #[arg(long, value_enum, default_value = "butterworth")]
     pub derivative: DerivativeArg,
@@ -97,6 +101,7 @@ impl Args {
             effects: self.effects.clone(),
             cutoff: CutoffArg::Text(self.cutoff.clone()),
             smoothing: self.smoothing.clone(),
+            coulomb_width: self.coulomb_width.clone(),
             derivative: self.derivative.name().into(),
             file_velocity: !self.ignore_file_velocity,
             physical: self.physical == "on",
@@ -124,6 +129,9 @@ fn command_line(args: &Args) -> String {
         args.smoothing,
         args.out.display()
     );
+    if args.coulomb_width != "auto" {
+        let _ = write!(c, " --coulomb-width {}", args.coulomb_width);
+    }
     if matches!(args.derivative, DerivativeArg::Savgol) {
         c += " --derivative savgol";
     }

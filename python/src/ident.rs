@@ -15,7 +15,7 @@ use crate::Arm;
 /// The native part of ``dynid.identify``: ``(report, files_written, warnings)``, the report as
 /// the dict of ``report.json``.
 #[pyfunction]
-#[pyo3(signature = (arm, train, validate, effects, cutoff, smoothing, derivative, file_velocity, physical, prior, strict, out, command, topic, joints, torque_scale))]
+#[pyo3(signature = (arm, train, validate, effects, cutoff, smoothing, coulomb_width, derivative, file_velocity, physical, prior, strict, out, command, topic, joints, torque_scale))]
 #[allow(clippy::too_many_arguments)]
 pub fn _identify<'py>(
     py: Python<'py>,
@@ -25,6 +25,7 @@ pub fn _identify<'py>(
     effects: String,
     cutoff: Cutoff,
     smoothing: String,
+    coulomb_width: String,
     derivative: String,
     file_velocity: bool,
     physical: bool,
@@ -40,6 +41,7 @@ pub fn _identify<'py>(
         effects,
         cutoff: cutoff.arg(),
         smoothing,
+        coulomb_width,
         derivative,
         file_velocity,
         physical,

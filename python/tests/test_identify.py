@@ -134,6 +134,29 @@ def test_the_report_object_is_what_json_loads_makes_of_report_json(tmp_path):
     assert isinstance(result.report["theta"][0]["value"], float)
 
 
+def test_a_fixed_coulomb_width_is_the_scans_own_trial():
+    """Oracle: the width scan's trial at a fraction refits the same model at that width, so fixing the width at the
+    fraction the scan kept gives the same fit and errors (and no scan in the report)."""
+    data = pd.read_csv(SET / "excite_noisy.csv.gz", float_precision="round_trip").iloc[:4000]
+    scanned = dynid.identify("planar2", data, effects="viscous,coulomb", cutoff=8.0, smoothing="1,states")
+    width = scanned.report["coulomb_width"]
+    assert [t["fraction"] for t in width["trials"]] == [0.003, 0.01, 0.03]
+    fixed = dynid.identify(
+        "planar2",
+        data,
+        effects="viscous,coulomb",
+        cutoff=8.0,
+        smoothing="1,states",
+        coulomb_width=width["chosen_fraction"],
+    )
+    assert fixed.report["coulomb_width"] is None
+    a, b = scanned.report["error"]["after"]["train"], fixed.report["error"]["after"]["train"]
+    assert a["overall"] == pytest.approx(b["overall"], rel=1e-9)
+    assert [t["value"] for t in scanned.report["theta"]] == pytest.approx(
+        [t["value"] for t in fixed.report["theta"]], rel=1e-9
+    )
+
+
 def test_torque_scale_multiplies_an_arrays_torque():
     """Oracle: halving the logged torque and asking for torque_scale=[2, 2] is the unscaled run, number for number
     (both are exact in binary floating point)."""
@@ -161,6 +184,8 @@ def test_bad_arrays_and_options_get_the_cli_checks_with_pythons_names():
         dynid.identify("planar2", cols, cutoff=-1)
     with pytest.raises(dynid.DynidError, match="cutoff: `fast` is not a positive number"):
         dynid.identify("planar2", cols, cutoff="fast")
+    with pytest.raises(dynid.DynidError, match=r"coulomb_width: `2` is not `auto` or a fraction in \(0, 1\]"):
+        dynid.identify("planar2", cols, coulomb_width=2)
     with pytest.raises(dynid.DynidError, match="derivative: `spline` is not an estimator"):
         dynid.identify("planar2", cols, derivative="spline")
     with pytest.raises(dynid.DynidError, match=r"data \(dict\): topic and joints are for ROS 2 bags"):

@@ -26,6 +26,9 @@ pub struct IdentifyArgs {
     pub cutoff: CutoffArg,
     /// `auto` or `RATIO,PREDICTION` (see [`Smoothing::parse`]).
     pub smoothing: String,
+    /// `auto` (held-out scan) or the Coulomb sign's smoothing velocity as a fraction of each
+    /// joint's RMS velocity, e.g. `0.01`.
+    pub coulomb_width: String,
     /// `butterworth` or `savgol`.
     pub derivative: String,
     /// Use a file's dq column (filtered) instead of differentiating q.
@@ -47,6 +50,7 @@ impl Default for IdentifyArgs {
             effects: "auto".into(),
             cutoff: CutoffArg::default(),
             smoothing: "auto".into(),
+            coulomb_width: "auto".into(),
             derivative: "butterworth".into(),
             file_velocity: true,
             physical: true,
@@ -100,6 +104,18 @@ impl IdentifyArgs {
                     .map_err(|e| AppError::Input(format!("{}: {e}", front.name("smoothing"))))?,
             ),
         };
+        let coulomb_width = match self.coulomb_width.trim() {
+            "auto" => None,
+            s => match s.parse::<f64>() {
+                Ok(f) if f.is_finite() && f > 0.0 && f <= 1.0 => Some(f),
+                _ => {
+                    return Err(AppError::Input(format!(
+                        "{}: `{s}` is not `auto` or a fraction in (0, 1] of the RMS joint velocity (e.g. 0.01)",
+                        front.name("coulomb_width")
+                    )))
+                }
+            },
+        };
         if train == 0 {
             return Err(AppError::Input(format!(
                 "{}: no training data — give at least one file or table",
@@ -116,6 +132,7 @@ impl IdentifyArgs {
         }
         let config = Config {
             smoothing,
+            coulomb_width,
             derivative,
             file_velocity: self.file_velocity,
             effects,

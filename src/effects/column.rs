@@ -24,6 +24,11 @@ impl Scales {
         stribeck_v: 0.1,
     };
 
+    /// The default Coulomb smoothing velocity as a fraction of the RMS joint velocity.
+    pub const COULOMB_FRACTION: f64 = 0.01;
+    /// The Stribeck velocity as a fraction of the RMS joint velocity.
+    pub const STRIBECK_FRACTION: f64 = 0.1;
+
     /// From the RMS joint velocity of the training data: `v` = 1 %, Stribeck velocity = 10 % of it.
     pub fn from_rms_velocity(rms: f64) -> Self {
         let rms = if rms.is_finite() && rms > 0.0 {
@@ -32,8 +37,17 @@ impl Scales {
             1.0
         };
         Scales {
-            coulomb_v: 0.01 * rms,
-            stribeck_v: 0.1 * rms,
+            coulomb_v: Self::COULOMB_FRACTION * rms,
+            stribeck_v: Self::STRIBECK_FRACTION * rms,
+        }
+    }
+
+    /// The same scales with the Coulomb velocity `fraction` of the RMS velocity they were made
+    /// from (read back from the Stribeck velocity).
+    pub fn with_coulomb_fraction(&self, fraction: f64) -> Self {
+        Scales {
+            coulomb_v: fraction * self.stribeck_v / Self::STRIBECK_FRACTION,
+            ..*self
         }
     }
 

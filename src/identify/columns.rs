@@ -31,6 +31,7 @@ pub(super) fn make_layout(
                 .iter()
                 .fold((0.0, 0usize), |(s, c), (s1, c1)| (s + s1[j], c + c1));
             Scales::from_rms_velocity((s / c.max(1) as f64).sqrt())
+                .with_coulomb_fraction(cfg.coulomb_width.unwrap_or(Scales::COULOMB_FRACTION))
         })
         .collect();
     let (declared, searched): (Vec<Term>, Vec<Term>) = match &cfg.effects {

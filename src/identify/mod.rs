@@ -46,6 +46,8 @@
 //!    are rebuilt); when one is found, the scan is repeated with it in its models
 //!    ([`LoadModel`]).
 //!    No effect is searched on a weak joint (`weak.rs`: its torque sits on its resolution floor).
+//!    Then the **Coulomb width scan** (`coulomb_width.rs`, unless `Config::coulomb_width` fixes
+//!    it): the smoothing of the Coulomb sign is chosen by held-out error on the training data.
 //!    Then the **per-joint guard** (`guard.rs`, with `--effects auto`): the plain fit (rigid body +
 //!    viscous, Coulomb, offset, armature on every joint) is always fitted; where it predicts a
 //!    joint better on held-out training data (by run, or by block with one file), the plain terms
@@ -56,6 +58,7 @@
 
 pub mod base;
 mod columns;
+pub mod coulomb_width;
 mod dot;
 mod evaluate;
 pub mod guard;
@@ -175,6 +178,9 @@ pub struct Config {
     pub blocks: usize,
     /// Regression filter and prediction; `None` = chosen by the scan with the cut-off.
     pub smoothing: Option<Smoothing>,
+    /// The Coulomb sign's smoothing velocity as a fraction of each joint's RMS training
+    /// velocity; `None` = chosen by the Coulomb width scan ([`coulomb_width`]).
+    pub coulomb_width: Option<f64>,
     /// Stage 8: the physically consistent estimate.
     pub physical: physical::PhysicalOptions,
     /// Where to report progress (stages, the scan's cut-offs, a study's folds).
@@ -190,6 +196,7 @@ impl Default for Config {
             rules: Rules::default(),
             blocks: 20,
             smoothing: None,
+            coulomb_width: None,
             physical: physical::PhysicalOptions::default(),
             progress: Progress::default(),
         }
@@ -343,6 +350,11 @@ fn run_prepared_with(
         .collect();
     let first = select::first_stage(problem, train, cfg, declared, &searched)?;
     let selected = load_stage(base, train, cfg, first)?;
+    let skip: Vec<usize> = weak.iter().map(|w| w.joint).collect();
+    let (selected, width_scan) = match cfg.coulomb_width {
+        None => coulomb_width::choose_width(base, train, cfg.blocks, selected, &skip),
+        Some(_) => (selected, None),
+    };
     // The per-joint guard against the plain fit (with `--effects auto`: a fixed list is the
     // user's model).
     let (selected, guard) = match cfg.effects {
@@ -389,6 +401,7 @@ fn run_prepared_with(
         pool_overall(&mut out, &joints);
     }
     out.guard = guard;
+    out.coulomb_width = width_scan;
     out.warnings
         .extend(identifiability::fixed_warning(&out.fixed));
     out.warnings

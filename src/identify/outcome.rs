@@ -139,6 +139,8 @@ pub struct Outcome {
     pub plain: Option<ModelResult>,
     /// The per-joint guard against the plain fit, and the weak joints (`--effects auto`).
     pub guard: Option<super::guard::Guard>,
+    /// The Coulomb width scan (`None`: the model has no Coulomb column, or load-dependent ones).
+    pub coulomb_width: Option<super::coulomb_width::WidthScan>,
 }
 
 /// Stage 7: the outcome of an identification whose effects are selected (`selected`, the
@@ -258,6 +260,7 @@ pub(super) fn assemble(
         undetermined,
         plain,
         guard: None,
+        coulomb_width: None,
     })
 }
 

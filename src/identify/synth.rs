@@ -49,6 +49,8 @@ pub struct Spec {
     pub jitter: f64,
     /// Joints held still (at a constant position) during the motion.
     pub still: Vec<usize>,
+    /// The plant's friction scales per joint (a smoothed Coulomb sign); empty = [`Scales::EXACT`].
+    pub plant_scales: Vec<Scales>,
     pub seed: u64,
 }
 
@@ -70,6 +72,7 @@ impl Spec {
             with_derivatives: false,
             jitter: 0.0,
             still: Vec::new(),
+            plant_scales: Vec::new(),
             seed,
         }
     }
@@ -222,7 +225,8 @@ pub fn generate(spec: &Spec) -> Trajectory {
         for (term, v) in &spec.effects {
             let j = term.joint;
             if !term.effect.needs_load() {
-                let st = JointState::new(qs[j], dqs[j], ddqs[j], &Scales::EXACT).at(tk);
+                let sc = spec.plant_scales.get(j).unwrap_or(&Scales::EXACT);
+                let st = JointState::new(qs[j], dqs[j], ddqs[j], sc).at(tk);
                 ts[j] += v * term.effect.column_at(&st, 0.0);
             }
         }

@@ -308,6 +308,18 @@ fn bad_inputs_exit_2_with_a_message_and_never_panic() {
             "cannot write",
         ),
         (vec!["torque", "--arm", "planar2"], "--params"),
+        (
+            vec![
+                "identify",
+                "--arm",
+                "planar2",
+                "--data",
+                d,
+                "--coulomb-width",
+                "0",
+            ],
+            "--coulomb-width: `0` is not `auto` or a fraction in (0, 1]",
+        ),
         (vec!["frobnicate"], "unrecognized subcommand"),
     ];
     for (args, needle) in cases {
