@@ -1,4 +1,4 @@
-//! Stage 6a, **the Coulomb width scan** ([`choose_width`]): the Coulomb column is the smoothed
+//! Stage 6a, **the Coulomb width scan** (`choose_width`): the Coulomb column is the smoothed
 //! sign `tanh(q̇ / v)`, and how sharp a real joint's friction turns at a reversal is a property of
 //! the arm, not a constant. Each width of [`FRACTIONS`] (times the joint's RMS training velocity)
 //! refits the selected model and is judged by its held-out error on the training data (by run,
@@ -17,6 +17,7 @@ use super::base::BaseModel;
 use super::guard::heldout_per_joint;
 use super::prepare::Prepared;
 use super::problem::Problem;
+use super::row_table::{GridBaseCache, RowTable};
 use super::select::Selected;
 use crate::effects::{Effect, Scales};
 
@@ -59,9 +60,10 @@ fn scannable(selected: &Selected) -> bool {
 
 /// Scans the Coulomb width of `selected` on `train` (joints in `skip` are not judged) and
 /// returns the model refitted at the width kept, with the scan (`None` when not scannable).
+/// Each width's rows are tabulated once when they fit (the base part shared through `grids`).
 pub(super) fn choose_width(
     base: &BaseModel,
-    train: &[Prepared],
+    (train, grids): (&[Prepared], &GridBaseCache),
     blocks: usize,
     selected: Selected,
     skip: &[usize],
@@ -71,7 +73,7 @@ pub(super) fn choose_width(
     }
     let terms = selected.selection.terms.clone();
     let by_run = selected.problem.files() > 1;
-    let judge = |p: &Problem| -> Vec<f64> {
+    let judge = |p: &Problem, train: &[Prepared]| -> Vec<f64> {
         heldout_per_joint(base, p, train, &terms, by_run)
             .or_else(|_| heldout_per_joint(base, p, train, &terms, false))
             .unwrap_or_else(|_| vec![f64::NAN; p.layout.dof])
@@ -92,16 +94,19 @@ pub(super) fn choose_width(
     let mut best: Option<(f64, Problem)> = None;
     let mut default_score = f64::NAN;
     for &fraction in &FRACTIONS {
-        let problem = if fraction == Scales::COULOMB_FRACTION {
-            None
+        let (problem, heldout) = if fraction == Scales::COULOMB_FRACTION {
+            (None, judge(&selected.problem, train))
         } else {
             let mut layout = selected.problem.layout.clone();
             for s in &mut layout.scales {
                 *s = s.with_coulomb_fraction(fraction);
             }
-            Some(Problem::build(base, layout, train, blocks))
+            let tabled = RowTable::attach(base, &layout, train, grids);
+            let files = tabled.as_deref().unwrap_or(train);
+            let p = Problem::build(base, layout, files, blocks);
+            let e = judge(&p, files);
+            (Some(p), e)
         };
-        let heldout = judge(problem.as_ref().unwrap_or(&selected.problem));
         let s = score(&heldout);
         trials.push(WidthTrial {
             fraction,

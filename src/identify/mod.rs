@@ -352,7 +352,7 @@ fn run_prepared_with(
     let selected = load_stage(base, train, cfg, first)?;
     let skip: Vec<usize> = weak.iter().map(|w| w.joint).collect();
     let (selected, width_scan) = match cfg.coulomb_width {
-        None => coulomb_width::choose_width(base, train, cfg.blocks, selected, &skip),
+        None => coulomb_width::choose_width(base, (train, grids), cfg.blocks, selected, &skip),
         Some(_) => (selected, None),
     };
     // The per-joint guard against the plain fit (with `--effects auto`: a fixed list is the
