@@ -12,8 +12,6 @@
 //! A second kind of weak joint, a torque that no model predicts (mostly noise), is found by the
 //! guard from the plain fit's held-out error ([`super::guard`]).
 
-use std::collections::HashMap;
-
 use serde::Serialize;
 
 use super::prepare::Prepared;
@@ -40,35 +38,67 @@ pub struct WeakJoint {
 }
 
 /// The joints of `train` whose torque sits on one value in at least [`MODE_SHARE`] of the
-/// samples (files without a torque column are skipped).
+/// samples (files without a torque column are skipped). Memory does not grow with the log:
+/// a Misra–Gries pass keeps two candidate values per joint (every value with more than a third
+/// of the samples survives it), a second pass counts them exactly, and only a weak joint's
+/// distinct values are collected (for the report), in a third.
 pub fn quantised(train: &[Prepared], dof: usize) -> Vec<WeakJoint> {
-    let mut counts: Vec<HashMap<u64, usize>> = vec![HashMap::new(); dof];
-    let mut total = 0usize;
-    for p in train {
-        let Some(off) = p.log.layout.tau_offset() else {
-            continue;
-        };
-        p.log.rows(p.raw_keep.0, p.raw_keep.1, |row| {
-            total += 1;
-            for (j, c) in counts.iter_mut().enumerate() {
-                // +0.0 and −0.0 are one value.
-                *c.entry((row[off + j] + 0.0).to_bits()).or_insert(0) += 1;
+    let each_row = |f: &mut dyn FnMut(&[f64], usize)| {
+        for p in train {
+            if let Some(off) = p.log.layout.tau_offset() {
+                p.log.rows(p.raw_keep.0, p.raw_keep.1, |row| f(row, off));
             }
-        });
-    }
+        }
+    };
+    // +0.0 and −0.0 are one value.
+    let key = |v: f64| (v + 0.0).to_bits();
+    let mut cands: Vec<[(u64, usize); 2]> = vec![[(0, 0); 2]; dof];
+    let mut total = 0usize;
+    each_row(&mut |row, off| {
+        total += 1;
+        for (j, c) in cands.iter_mut().enumerate() {
+            misra_gries(c, key(row[off + j]));
+        }
+    });
     if total == 0 {
         return Vec::new();
     }
+    let mut counts: Vec<[usize; 2]> = vec![[0; 2]; dof];
+    each_row(&mut |row, off| {
+        for (j, n) in counts.iter_mut().enumerate() {
+            let k = key(row[off + j]);
+            for (slot, c) in n.iter_mut().zip(&cands[j]) {
+                if c.1 > 0 && c.0 == k {
+                    *slot += 1;
+                }
+            }
+        }
+    });
+    let modes: Vec<Option<(u64, usize)>> = (0..dof)
+        .map(|j| {
+            (0..2)
+                .map(|i| (cands[j][i].0, counts[j][i]))
+                .filter(|&(_, n)| n as f64 / total as f64 >= MODE_SHARE)
+                .max_by_key(|&(b, n)| (n, std::cmp::Reverse(b)))
+        })
+        .collect();
+    let mut levels: Vec<std::collections::BTreeSet<u64>> = vec![Default::default(); dof];
+    if modes.iter().any(Option::is_some) {
+        each_row(&mut |row, off| {
+            for (j, l) in levels.iter_mut().enumerate() {
+                if modes[j].is_some() {
+                    l.insert(key(row[off + j]));
+                }
+            }
+        });
+    }
     let mut out = Vec::new();
-    for (j, c) in counts.iter().enumerate() {
-        let Some((&bits, &n)) = c.iter().max_by_key(|(&b, &n)| (n, std::cmp::Reverse(b))) else {
+    for (j, mode) in modes.iter().enumerate() {
+        let Some((bits, n)) = *mode else {
             continue;
         };
         let share = n as f64 / total as f64;
-        if share < MODE_SHARE {
-            continue;
-        }
-        let mut values: Vec<f64> = c.keys().map(|&b| f64::from_bits(b)).collect();
+        let mut values: Vec<f64> = levels[j].iter().map(|&b| f64::from_bits(b)).collect();
         values.sort_by(f64::total_cmp);
         let step = values
             .windows(2)
@@ -91,6 +121,20 @@ pub fn quantised(train: &[Prepared], dof: usize) -> Vec<WeakJoint> {
         });
     }
     out
+}
+
+/// One Misra–Gries step with two counters: afterwards every value seen more than a third of
+/// the time so far is among the candidates (a zero count is an empty slot).
+fn misra_gries(c: &mut [(u64, usize); 2], k: u64) {
+    if let Some(slot) = c.iter_mut().find(|s| s.1 > 0 && s.0 == k) {
+        slot.1 += 1;
+    } else if let Some(slot) = c.iter_mut().find(|s| s.1 == 0) {
+        *slot = (k, 1);
+    } else {
+        for s in c.iter_mut() {
+            s.1 -= 1;
+        }
+    }
 }
 
 /// The joints an overall error pools: the identifiable (not `weak`) joints of the unit most
@@ -172,6 +216,40 @@ mod tests {
         assert!(w.levels >= 3, "{}", w.levels);
         assert!((w.step - step).abs() < 1e-12, "{}", w.step);
         assert!(w.reason.contains("joint 2"), "{}", w.reason);
+    }
+
+    #[test]
+    fn misra_gries_keeps_every_value_over_a_third_of_the_stream() {
+        // Oracle: exact counts. Streams of a few values with skewed, random frequencies, in
+        // random order; every value seen more than n/3 times must be a candidate at the end.
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        for _ in 0..500 {
+            let n = rng.gen_range(1..400);
+            let skew: f64 = rng.gen_range(0.0..1.0);
+            let stream: Vec<u64> = (0..n)
+                .map(|_| {
+                    if rng.gen_bool(skew) {
+                        0
+                    } else {
+                        rng.gen_range(0..6)
+                    }
+                })
+                .collect();
+            let mut c = [(0u64, 0usize); 2];
+            for &k in &stream {
+                misra_gries(&mut c, k);
+            }
+            for v in 0..6u64 {
+                let count = stream.iter().filter(|&&k| k == v).count();
+                if 3 * count > n {
+                    assert!(
+                        c.iter().any(|s| s.1 > 0 && s.0 == v),
+                        "{v} seen {count} of {n}: {c:?}"
+                    );
+                }
+            }
+        }
     }
 
     #[test]
