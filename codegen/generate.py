@@ -15,6 +15,7 @@ import numpy as np
 from . import GENERATOR_VERSION
 from .algebra import Scalar
 from .base_params import BaseParams, analyse, param_names, random_states
+from .crba import mass_matrix
 from .derivatives import inverse_dynamics_jacobians, inverse_dynamics_jvp
 from .dh import DhTable, load
 from .emit_rust import emit
@@ -81,12 +82,7 @@ def derive(arm: DhTable, base: BaseParams) -> tuple[Symbols, ca.SX, list[Kernel]
     Yb_rows = regressor(tf, full, set(base.kept))
     Yb = [[row[c] for c in base.kept] for row in Yb_rows]
 
-    M: list[list[Scalar]] = [[0.0] * n for _ in range(n)]
-    for k in range(n):
-        e_k: list[Scalar] = [1.0 if i == k else 0.0 for i in range(n)]
-        col = rnea(tf, forward(tf, zero, e_k, [0.0, 0.0, 0.0]), p_star)
-        for i in range(k, n):
-            M[i][k] = M[k][i] = col[i]
+    M = mass_matrix(tf, sym.trig, p_star)
 
     h = rnea(tf, forward(tf, dq, zero, g), p_star)
     tau = rnea(tf, full, p_star)
