@@ -175,6 +175,12 @@ def _trig_prelude(arm: DhTable, trig_joints: list[int]) -> list[str]:
     # one `sin_cos` call per joint); a kernel of two or three joints in all through `sin_cos2` or
     # `sin_cos3` (planar2 and SCARA kernels 1.1-1.2x faster), but the joints left after a group
     # of four one by one (a `sin_cos2` there made the Panda gravity 1.16x slower, in 5 rounds).
+    # Five to eight joints: one `sin_cos8` (one eight-lane evaluation where the crate has
+    # AVX-512F, a quarter of the instructions of a `sin_cos4` and one `sin_cos` per joint left).
+    if 5 <= len(trig_joints) <= 8:
+        pairs = ", ".join(f"(s{i + 1}, c{i + 1})" for i in trig_joints)
+        args = ", ".join(arg(i) for i in trig_joints)
+        return [f"let [{pairs}] = crate::trig::sin_cos8([{args}]);"]
     pre = []
     groups = [trig_joints[g : g + 4] for g in range(0, len(trig_joints), 4)]
     if len(groups) > 1 and len(groups[-1]) < 4:
