@@ -15,6 +15,7 @@ import numpy as np
 from . import GENERATOR_VERSION
 from .algebra import Scalar
 from .base_params import BaseParams, analyse, param_names, random_states
+from .crba import mass_matrix
 from .derivatives import inverse_dynamics_jacobians, inverse_dynamics_jvp
 from .dh import DhTable, load
 from .emit_rust import emit
@@ -81,12 +82,7 @@ def derive(arm: DhTable, base: BaseParams) -> tuple[Symbols, ca.SX, list[Kernel]
     Yb_rows = regressor(tf, full, set(base.kept))
     Yb = [[row[c] for c in base.kept] for row in Yb_rows]
 
-    M: list[list[Scalar]] = [[0.0] * n for _ in range(n)]
-    for k in range(n):
-        e_k: list[Scalar] = [1.0 if i == k else 0.0 for i in range(n)]
-        col = rnea(tf, forward(tf, zero, e_k, [0.0, 0.0, 0.0]), p_star)
-        for i in range(k, n):
-            M[i][k] = M[k][i] = col[i]
+    M = mass_matrix(tf, sym.trig, p_star)
 
     h = rnea(tf, forward(tf, dq, zero, g), p_star)
     tau = rnea(tf, full, p_star)
@@ -179,6 +175,12 @@ def _trig_prelude(arm: DhTable, trig_joints: list[int]) -> list[str]:
     # one `sin_cos` call per joint); a kernel of two or three joints in all through `sin_cos2` or
     # `sin_cos3` (planar2 and SCARA kernels 1.1-1.2x faster), but the joints left after a group
     # of four one by one (a `sin_cos2` there made the Panda gravity 1.16x slower, in 5 rounds).
+    # Five to eight joints: one `sin_cos8` (one eight-lane evaluation where the crate has
+    # AVX-512F, a quarter of the instructions of a `sin_cos4` and one `sin_cos` per joint left).
+    if 5 <= len(trig_joints) <= 8:
+        pairs = ", ".join(f"(s{i + 1}, c{i + 1})" for i in trig_joints)
+        args = ", ".join(arg(i) for i in trig_joints)
+        return [f"let [{pairs}] = crate::trig::sin_cos8([{args}]);"]
     pre = []
     groups = [trig_joints[g : g + 4] for g in range(0, len(trig_joints), 4)]
     if len(groups) > 1 and len(groups[-1]) < 4:

@@ -255,6 +255,11 @@ pub trait Lane:
     fn sin_cos2(a: Self, b: Self) -> [(Self, Self); 2] {
         [a.sin_cos(), b.sin_cos()]
     }
+    /// [`Lane::sin_cos`] of up to eight values (the lane form of [`crate::trig::sin_cos8`]).
+    #[inline(always)]
+    fn sin_cos8<const N: usize>(x: [Self; N]) -> [(Self, Self); N] {
+        std::array::from_fn(|i| x[i].sin_cos())
+    }
     /// `*dst = 0` in every lane (see [`store_zero`]): a plain store unless the type says
     /// otherwise.
     #[inline(always)]

@@ -323,7 +323,7 @@ def test_fuse_folds_each_single_use_product_into_its_sum_with_the_right_signs():
     vectors = {"trig": sym.trig, "q": sym.q, "dq": sym.dq, "ddq": sym.ddq, "tau": sym.tau, "theta": theta}
     g = ca.Function(k.name, [vectors[n] for n in k.inputs], [ca.cse(_sx(k.outputs))])
     body = emit(g, lambda inp, nz: f"{k.inputs[inp]}[{nz}]", len(k.outputs)).lines
-    assert sum("mul_add" in ln for ln in body) > 100
+    assert sum("mul_add" in ln for ln in body) > 50
     rng = np.random.default_rng(5)
     inputs = {n: list(rng.uniform(-1.0, 1.0, size=g.size1_in(i))) for i, n in enumerate(k.inputs)}
     want = np.array(g(*[inputs[n] for n in k.inputs])).ravel()

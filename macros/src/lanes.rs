@@ -1,6 +1,6 @@
 //! The lane-batched copy of a generated kernel (see `dynid::pack`): the same body, generic over
 //! the lane type `L: crate::pack::Lane`, with `f64` replaced by `L`, every float literal `c` by
-//! `L::splat(c)` and `crate::trig::sin_cos{,2,3,4}` and `crate::trig::mul_add` by the `L` methods of
+//! `L::splat(c)` and `crate::trig::sin_cos{,2,3,4,8}` and `crate::trig::mul_add` by the `L` methods of
 //! those names. The function becomes
 //! `<name>_lanes::<L>`, always inlined (into the `Model` methods that pick `L`, and into the
 //! AVX-512 wrappers, which must compile it with their target features). Its `const ZEROS: bool`
@@ -14,11 +14,12 @@ struct ToLanes;
 
 /// The functions the kernels call (trigonometry and fused multiply-adds), each mapped to the
 /// `crate::pack::Lane` method of its name.
-const CALLS: [&str; 5] = [
+const CALLS: [&str; 6] = [
     "crate::trig::sin_cos",
     "crate::trig::sin_cos2",
     "crate::trig::sin_cos3",
     "crate::trig::sin_cos4",
+    "crate::trig::sin_cos8",
     "crate::trig::mul_add",
 ];
 
