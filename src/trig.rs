@@ -127,7 +127,7 @@ pub fn sin_cos2(a: f64, b: f64) -> [(f64, f64); 2] {
 }
 
 /// [`sin_cos`] of up to eight values (`N ≤ 8`), bit for bit one call each: where the crate is
-/// compiled with AVX-512F, one evaluation of the eight-lane polynomial ([`avx512::sin_cos`], the
+/// compiled with AVX-512F, one evaluation of the eight-lane polynomial (`avx512::sin_cos`, the
 /// same operations), for a 5- to 8-joint kernel about a quarter of the instructions of a
 /// [`sin_cos4`] and one [`sin_cos`] per joint left; elsewhere two [`sin_cos4`]. A value the fast
 /// path does not cover sends all of them through [`sin_cos`] one by one, out of line.
