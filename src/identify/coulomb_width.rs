@@ -91,7 +91,7 @@ pub(super) fn choose_width(
         (logs.iter().sum::<f64>() / logs.len() as f64).exp()
     };
     let mut trials = Vec::new();
-    let mut best: Option<(f64, Problem)> = None;
+    let mut best: Option<(f64, f64, Problem)> = None;
     let mut default_score = f64::NAN;
     for &fraction in &FRACTIONS {
         let (problem, heldout) = if fraction == Scales::COULOMB_FRACTION {
@@ -115,20 +115,17 @@ pub(super) fn choose_width(
         });
         match problem {
             None => default_score = s,
-            Some(p) if s.is_finite() && best.as_ref().is_none_or(|(b, _)| s < *b) => {
-                best = Some((s, p))
+            Some(p) if s.is_finite() && best.as_ref().is_none_or(|(b, _, _)| s < *b) => {
+                best = Some((s, fraction, p))
             }
             Some(_) => {}
         }
     }
     let mut selected = selected;
     let mut chosen = Scales::COULOMB_FRACTION;
-    if let Some((s, p)) = best {
+    if let Some((s, fraction, p)) = best {
         if !default_score.is_finite() || s < default_score * (1.0 - TIE) {
-            chosen = trials
-                .iter()
-                .find(|t| t.score == s)
-                .map_or(chosen, |t| t.fraction);
+            chosen = fraction;
             selected.problem = p;
         }
     }
