@@ -164,7 +164,13 @@ def check_against_lagrange(arm: DhTable, sym: Symbols, Y: list[Scalar], samples:
     return worst
 
 
-def _trig_prelude(arm: DhTable, trig_joints: list[int]) -> list[str]:
+# A straight-line kernel of this many operations or more takes its sines and cosines four at a
+# time, not from one `sin_cos8`: the Panda inverse dynamics derivatives (5749 operations) was
+# 1.04x [1.01-1.04] faster so (3 interleaved rounds), the PUMA 560 one (3304) 1.85x slower.
+EIGHT_MAX_OPS = 5000
+
+
+def _trig_prelude(arm: DhTable, trig_joints: list[int], eight: bool = True) -> list[str]:
     """`let (s<i>, c<i>) = ...` for the joints whose cosine or sine a kernel reads."""
 
     def arg(i: int) -> str:
@@ -177,7 +183,8 @@ def _trig_prelude(arm: DhTable, trig_joints: list[int]) -> list[str]:
     # of four one by one (a `sin_cos2` there made the Panda gravity 1.16x slower, in 5 rounds).
     # Five to eight joints: one `sin_cos8` (one eight-lane evaluation where the crate has
     # AVX-512F, a quarter of the instructions of a `sin_cos4` and one `sin_cos` per joint left).
-    if 5 <= len(trig_joints) <= 8:
+    # Not in kernels of EIGHT_MAX_OPS operations or more (see there).
+    if eight and 5 <= len(trig_joints) <= 8:
         pairs = ", ".join(f"(s{i + 1}, c{i + 1})" for i in trig_joints)
         args = ", ".join(arg(i) for i in trig_joints)
         return [f"let [{pairs}] = crate::trig::sin_cos8([{args}]);"]
@@ -311,7 +318,7 @@ def emit_kernel(arm: DhTable, sym: Symbols, theta: ca.SX, k: Kernel) -> Emitted:
     body = emit(f, name, len(k.outputs))
     trig_joints = sorted({nz // 2 for inp, nz in body.used if k.inputs[inp] == "trig"})
 
-    pre = _trig_prelude(arm, trig_joints)
+    pre = _trig_prelude(arm, trig_joints, body.mul + body.add < EIGHT_MAX_OPS)
     sig = ", ".join(k.args + [f"out: &mut [f64; {k.out_len}]"])
     lines = [f"#[inline]\npub fn {k.name}({sig}) {{"]
     lines += [f"    {ln}" for ln in pre + body.lines]
