@@ -164,7 +164,13 @@ def check_against_lagrange(arm: DhTable, sym: Symbols, Y: list[Scalar], samples:
     return worst
 
 
-def _trig_prelude(arm: DhTable, trig_joints: list[int]) -> list[str]:
+# A straight-line kernel of this many operations or more takes its sines and cosines four at a
+# time, not from one `sin_cos8`: the Panda inverse dynamics derivatives (5749 operations) was
+# 1.04x [1.01-1.04] faster so (3 interleaved rounds), the PUMA 560 one (3304) 1.85x slower.
+EIGHT_MAX_OPS = 5000
+
+
+def _trig_prelude(arm: DhTable, trig_joints: list[int], eight: bool = True) -> list[str]:
     """`let (s<i>, c<i>) = ...` for the joints whose cosine or sine a kernel reads."""
 
     def arg(i: int) -> str:
@@ -177,7 +183,8 @@ def _trig_prelude(arm: DhTable, trig_joints: list[int]) -> list[str]:
     # of four one by one (a `sin_cos2` there made the Panda gravity 1.16x slower, in 5 rounds).
     # Five to eight joints: one `sin_cos8` (one eight-lane evaluation where the crate has
     # AVX-512F, a quarter of the instructions of a `sin_cos4` and one `sin_cos` per joint left).
-    if 5 <= len(trig_joints) <= 8:
+    # Not in kernels of EIGHT_MAX_OPS operations or more (see there).
+    if eight and 5 <= len(trig_joints) <= 8:
         pairs = ", ".join(f"(s{i + 1}, c{i + 1})" for i in trig_joints)
         args = ", ".join(arg(i) for i in trig_joints)
         return [f"let [{pairs}] = crate::trig::sin_cos8([{args}]);"]
@@ -297,6 +304,70 @@ fn {name}_wide({sig}) {{
     return "\n\n".join([head + "\n".join(body), fused, fdm.code, jvp.code])
 
 
+def _compact_id(emitted: list[Emitted]) -> list[Emitted]:
+    """Where `forward_dynamics_derivatives` has its compact form, `inverse_dynamics_derivatives`
+    gets one from the same directional-derivative part: with AVX-512 its `⌈2n/8⌉` eight-lane calls
+    on the unit directions are the columns of `(∂τ/∂q, ∂τ/∂q̇)`, less code per call than the
+    straight-line kernel (which stays as `inverse_dynamics_derivatives_fused`)."""
+    by = {e.name: e for e in emitted}
+    fdd, idd = by.get("forward_dynamics_derivatives"), by.get("inverse_dynamics_derivatives")
+    if fdd is None or idd is None or "fn forward_dynamics_derivatives_wide(" not in fdd.code:
+        return emitted
+    wide = fdd.code.split("fn forward_dynamics_derivatives_wide(", 1)[1]
+    lines = wide.splitlines()
+    start = next(i for i, ln in enumerate(lines) if ln.strip().startswith("use crate::pack::wide"))
+    end = next(i for i, ln in enumerate(lines) if ln.strip().startswith("let t = ["))
+    setup = lines[start + 1 : end + 1]
+    name, jvp = idd.name, "forward_dynamics_derivatives_part_jvp_lanes"
+    n_calls = fdd.code.split("part_jvp ", 1)[1].split("(", 1)[1].split(" calls", 1)[0]
+    sig = "q: &[f64; DOF], dq: &[f64; DOF], ddq: &[f64; DOF], theta: &[f64; NB], out: &mut [f64; 2 * DOF * DOF]"
+    args = "q, dq, ddq, theta, out"
+    cfg = '#[cfg(all(target_arch = "x86_64", target_feature = "fma"))]'
+    code = f"""/// Compact scalar form (`{jvp}`, {n_calls} calls of {WIDE} lanes on unit directions): with
+/// AVX-512 `{name}_wide`, else `{name}_fused`.
+#[inline]
+pub fn {name}({sig}) {{
+    {cfg}
+    if crate::pack::wide::avx512() {{
+        // SAFETY: `avx512()` checked that the CPU has AVX-512F.
+        return unsafe {{ {name}_wide({args}) }};
+    }}
+    {name}_fused({args})
+}}
+
+/// `(∂τ/∂q, ∂τ/∂q̇)`, eight columns per call of `{jvp}` (one unit direction per lane).
+{cfg}
+#[target_feature(enable = "avx512f")]
+fn {name}_wide({sig}) {{
+    use crate::pack::wide::{{as_zmm, as_zmm_mut, Pack8, Zmm}};
+""" + "\n".join(setup) + f"""
+    let (t, q, dq, ddq, theta) = (t.map(Pack8::splat), q.map(Pack8::splat), dq.map(Pack8::splat), ddq.map(Pack8::splat), theta.map(Pack8::splat));
+    for g in 0..{n_calls} {{
+        let d: [Pack8; 2 * DOF] = core::array::from_fn(|c| {{
+            Pack8::new(core::array::from_fn(|l| if c == {WIDE} * g + l {{ 1.0 }} else {{ 0.0 }}))
+        }});
+        let mut col = [Pack8::splat(0.0); DOF];
+        // SAFETY: compiled with AVX-512F, called only where the CPU has it.
+        unsafe {{
+            {jvp}::<Zmm, true>(
+                as_zmm(&t), as_zmm(&q), as_zmm(&dq), as_zmm(&ddq), as_zmm(&theta), as_zmm(&d),
+                as_zmm_mut(&mut col),
+            );
+        }}
+        for r in 0..DOF {{
+            let v = col[r].to_array();
+            for l in 0..{WIDE}.min(2 * DOF - {WIDE} * g) {{
+                let c = {WIDE} * g + l;
+                out[(c / DOF) * DOF * DOF + r * DOF + c % DOF] = v[l];
+            }}
+        }}
+    }}
+}}
+
+""" + idd.code.replace(f"pub fn {name}(", f"pub fn {name}_fused(", 1)
+    return [Emitted(e.name, code, e.mul, e.add) if e is idd else e for e in emitted]
+
+
 def emit_kernel(arm: DhTable, sym: Symbols, theta: ca.SX, k: Kernel) -> Emitted:
     vectors = {"trig": sym.trig, "q": sym.q, "dq": sym.dq, "ddq": sym.ddq, "tau": sym.tau, "theta": theta}
     out = ca.cse(_sx(k.outputs))
@@ -311,7 +382,7 @@ def emit_kernel(arm: DhTable, sym: Symbols, theta: ca.SX, k: Kernel) -> Emitted:
     body = emit(f, name, len(k.outputs))
     trig_joints = sorted({nz // 2 for inp, nz in body.used if k.inputs[inp] == "trig"})
 
-    pre = _trig_prelude(arm, trig_joints)
+    pre = _trig_prelude(arm, trig_joints, body.mul + body.add < EIGHT_MAX_OPS)
     sig = ", ".join(k.args + [f"out: &mut [f64; {k.out_len}]"])
     lines = [f"#[inline]\npub fn {k.name}({sig}) {{"]
     lines += [f"    {ln}" for ln in pre + body.lines]
@@ -408,6 +479,7 @@ def generate(toml_path: Path) -> Result:
     sym, theta, kernels = derive(arm, base)
     lag = check_against_lagrange(arm, sym, kernels[0].outputs)
     emitted = [emit_kernel(arm, sym, theta, k) for k in kernels]
+    emitted = _compact_id(emitted)
     text = render(arm, toml_path.name, digest, base, emitted)
     ops = [(e.name, e.mul, e.add) for e in emitted]
     return Result(arm.name, text, time.perf_counter() - t0, ops, base.rank, lag)

@@ -160,6 +160,29 @@ fn inverse_dynamics_derivatives_are_the_derivatives_of_inverse_dynamics() {
     }
 }
 
+/// The compact scalar form of `inverse_dynamics_derivatives` (the Panda's, since generator 0.3.4:
+/// with AVX-512, eight directional derivatives of inverse dynamics per call) is the fused
+/// straight-line kernel to rounding: 1e-12 relative to the largest entry.
+#[test]
+fn inverse_dynamics_derivatives_compact_form_is_the_fused_kernel() {
+    let mut r = rng(45);
+    for c in cases(4500) {
+        let (m, n) = (c.m, c.m.dof());
+        for _ in 0..SAMPLES {
+            let (q, dq, ddq) = random_state(&mut r, n);
+            let (mut d, mut fused) = (vec![0.0; 2 * n * n], vec![0.0; 2 * n * n]);
+            m.inverse_dynamics_derivatives(&q, &dq, &ddq, &c.theta, &mut d);
+            m.inverse_dynamics_derivatives_straight(&q, &dq, &ddq, &c.theta, &mut fused);
+            assert_close(
+                &d,
+                &fused,
+                1e-12,
+                &format!("{}: compact vs fused", m.name()),
+            );
+        }
+    }
+}
+
 /// The compact scalar form of `forward_dynamics_derivatives` (with AVX-512: `q̈`, `M⁻¹` and
 /// eight directional derivatives of inverse dynamics per call; `codegen/FORMAT.md`) is the fused
 /// straight-line kernel to rounding: 1e-12 relative to the largest entry.
