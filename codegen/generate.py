@@ -323,7 +323,11 @@ def _compact_id(emitted: list[Emitted]) -> list[Emitted]:
     sig = "q: &[f64; DOF], dq: &[f64; DOF], ddq: &[f64; DOF], theta: &[f64; NB], out: &mut [f64; 2 * DOF * DOF]"
     args = "q, dq, ddq, theta, out"
     cfg = '#[cfg(all(target_arch = "x86_64", target_feature = "fma"))]'
-    code = f"""/// Compact scalar form (`{jvp}`, {n_calls} calls of {WIDE} lanes on unit directions): with
+    splat = "let (t, q, dq, ddq, theta) = ({});".format(
+        ", ".join(f"{v}.map(Pack8::splat)" for v in ("t", "q", "dq", "ddq", "theta"))
+    )
+    code = (
+        f"""/// Compact scalar form (`{jvp}`, {n_calls} calls of {WIDE} lanes on unit directions): with
 /// AVX-512 `{name}_wide`, else `{name}_fused`.
 #[inline]
 pub fn {name}({sig}) {{
@@ -340,8 +344,10 @@ pub fn {name}({sig}) {{
 #[target_feature(enable = "avx512f")]
 fn {name}_wide({sig}) {{
     use crate::pack::wide::{{as_zmm, as_zmm_mut, Pack8, Zmm}};
-""" + "\n".join(setup) + f"""
-    let (t, q, dq, ddq, theta) = (t.map(Pack8::splat), q.map(Pack8::splat), dq.map(Pack8::splat), ddq.map(Pack8::splat), theta.map(Pack8::splat));
+"""
+        + "\n".join(setup)
+        + f"""
+    {splat}
     for g in 0..{n_calls} {{
         let d: [Pack8; 2 * DOF] = core::array::from_fn(|c| {{
             Pack8::new(core::array::from_fn(|l| if c == {WIDE} * g + l {{ 1.0 }} else {{ 0.0 }}))
@@ -364,7 +370,9 @@ fn {name}_wide({sig}) {{
     }}
 }}
 
-""" + idd.code.replace(f"pub fn {name}(", f"pub fn {name}_fused(", 1)
+"""
+        + idd.code.replace(f"pub fn {name}(", f"pub fn {name}_fused(", 1)
+    )
     return [Emitted(e.name, code, e.mul, e.add) if e is idd else e for e in emitted]
 
 
