@@ -148,11 +148,7 @@ pub(super) fn consistent(
                 lo: 0.0,
                 hi: LOAD_FRICTION_MAX,
             }),
-            Effect::Offset
-            | Effect::Spring
-            | Effect::Drift
-            | Effect::RippleSin
-            | Effect::RippleCos => {}
+            Effect::Offset | Effect::Spring | Effect::Drift => {}
         }
     }
     cp.prior = opts.prior.as_ref().map(|p| DVector::from_column_slice(p));
