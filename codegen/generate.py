@@ -219,6 +219,29 @@ WIDE = 8
 # bytes of machine code each, against a 32 KiB L1i). Measured: Panda (8683) 1026-1043 ns against
 # 1256-1317 fused; PUMA 560 (5112) 915-1342 against 717-721, slower, so it keeps the fused kernel.
 COMPACT_MIN_OPS = 6000
+# The compact forms' wide halves exist where the crate is built with FMA on x86-64.
+_FMA_CFG = '#[cfg(all(target_arch = "x86_64", target_feature = "fma"))]'
+
+
+def _calls(n: int) -> int:
+    """Eight-lane calls that cover the `2n` unit directions of `(q, q̇)`."""
+    return -(-2 * n // WIDE)
+
+
+def _dispatch(doc: str, name: str, sig: str, args: str) -> str:
+    """The public kernel of a compact form: `<name>_wide` where the CPU has AVX-512F, else
+    `<name>_fused` (the straight-line kernel)."""
+    return f"""{doc}
+#[inline]
+pub fn {name}({sig}) {{
+    {_FMA_CFG}
+    if crate::pack::wide::avx512() {{
+        // SAFETY: `avx512()` checked that the CPU has AVX-512F.
+        return unsafe {{ {name}_wide({args}) }};
+    }}
+    {name}_fused({args})
+}}
+"""
 
 
 def _compact(arm: DhTable, k: Kernel, fused: str) -> str:
@@ -232,26 +255,19 @@ def _compact(arm: DhTable, k: Kernel, fused: str) -> str:
     parts = [_emit_part(name, p) for p in k.parts]
     used = sorted({int(j) for trig, _ in parts for j in trig.split(",") if j})
     fdm, jvp = (e for _, e in parts)
-    calls = -(-2 * n // WIDE)
+    calls = _calls(n)
     t = ", ".join(f"c{i + 1}, s{i + 1}" if i in used else "0.0, 0.0" for i in range(n))
     sig = ", ".join(k.args + [f"out: &mut [f64; {k.out_len}]"])
     args = "q, dq, tau, theta, out"
-    cfg = '#[cfg(all(target_arch = "x86_64", target_feature = "fma"))]'
+    cfg = _FMA_CFG
     ops = (
         f"part_fdm {fdm.mul} / {fdm.add}, part_jvp {jvp.mul} / {jvp.add} ({calls} calls of {WIDE} lanes), "
         f"and the {2 * n}·{n}² products"
     )
-    head = f"""/// Compact scalar form ({ops}): with AVX-512 `{name}_wide`, else `{name}_fused`.
-#[inline]
-pub fn {name}({sig}) {{
-    {cfg}
-    if crate::pack::wide::avx512() {{
-        // SAFETY: `avx512()` checked that the CPU has AVX-512F.
-        return unsafe {{ {name}_wide({args}) }};
-    }}
-    {name}_fused({args})
-}}
-
+    doc = f"/// Compact scalar form ({ops}): with AVX-512 `{name}_wide`, else `{name}_fused`."
+    head = (
+        _dispatch(doc, name, sig, args)
+        + f"""
 /// `q̈` and `M⁻¹` (`{name}_part_fdm`), `∂τ/∂x` eight unit directions per call
 /// (`{name}_part_jvp_lanes`), `∂q̈/∂x = −M⁻¹ ∂τ/∂x`.
 {cfg}
@@ -259,6 +275,7 @@ pub fn {name}({sig}) {{
 fn {name}_wide({sig}) {{
     use crate::pack::wide::{{as_zmm, as_zmm_mut, Pack8, Zmm}};
 """
+    )
     body = [f"    {ln}" for ln in _trig_prelude(arm, used)]
     body += [
         f"    let t = [{t}];",
@@ -304,7 +321,7 @@ fn {name}_wide({sig}) {{
     return "\n\n".join([head + "\n".join(body), fused, fdm.code, jvp.code])
 
 
-def _compact_id(emitted: list[Emitted]) -> list[Emitted]:
+def _compact_id(dof: int, emitted: list[Emitted]) -> list[Emitted]:
     """Where `forward_dynamics_derivatives` has its compact form, `inverse_dynamics_derivatives`
     gets one from the same directional-derivative part: with AVX-512 its `⌈2n/8⌉` eight-lane calls
     on the unit directions are the columns of `(∂τ/∂q, ∂τ/∂q̇)`, less code per call than the
@@ -319,26 +336,20 @@ def _compact_id(emitted: list[Emitted]) -> list[Emitted]:
     end = next(i for i, ln in enumerate(lines) if ln.strip().startswith("let t = ["))
     setup = lines[start + 1 : end + 1]
     name, jvp = idd.name, "forward_dynamics_derivatives_part_jvp_lanes"
-    n_calls = fdd.code.split("part_jvp ", 1)[1].split("(", 1)[1].split(" calls", 1)[0]
+    n_calls = _calls(dof)
     sig = "q: &[f64; DOF], dq: &[f64; DOF], ddq: &[f64; DOF], theta: &[f64; NB], out: &mut [f64; 2 * DOF * DOF]"
     args = "q, dq, ddq, theta, out"
-    cfg = '#[cfg(all(target_arch = "x86_64", target_feature = "fma"))]'
+    cfg = _FMA_CFG
     splat = "let (t, q, dq, ddq, theta) = ({});".format(
         ", ".join(f"{v}.map(Pack8::splat)" for v in ("t", "q", "dq", "ddq", "theta"))
     )
+    doc = (
+        f"/// Compact scalar form (`{jvp}`, {n_calls} calls of {WIDE} lanes on unit directions): with\n"
+        f"/// AVX-512 `{name}_wide`, else `{name}_fused`."
+    )
     code = (
-        f"""/// Compact scalar form (`{jvp}`, {n_calls} calls of {WIDE} lanes on unit directions): with
-/// AVX-512 `{name}_wide`, else `{name}_fused`.
-#[inline]
-pub fn {name}({sig}) {{
-    {cfg}
-    if crate::pack::wide::avx512() {{
-        // SAFETY: `avx512()` checked that the CPU has AVX-512F.
-        return unsafe {{ {name}_wide({args}) }};
-    }}
-    {name}_fused({args})
-}}
-
+        _dispatch(doc, name, sig, args)
+        + f"""
 /// `(∂τ/∂q, ∂τ/∂q̇)`, eight columns per call of `{jvp}` (one unit direction per lane).
 {cfg}
 #[target_feature(enable = "avx512f")]
@@ -487,7 +498,7 @@ def generate(toml_path: Path) -> Result:
     sym, theta, kernels = derive(arm, base)
     lag = check_against_lagrange(arm, sym, kernels[0].outputs)
     emitted = [emit_kernel(arm, sym, theta, k) for k in kernels]
-    emitted = _compact_id(emitted)
+    emitted = _compact_id(arm.dof, emitted)
     text = render(arm, toml_path.name, digest, base, emitted)
     ops = [(e.name, e.mul, e.add) for e in emitted]
     return Result(arm.name, text, time.perf_counter() - t0, ops, base.rank, lag)
