@@ -48,7 +48,7 @@ NEW_EFFECTS = ["ripple", "asym_coulomb", "run_offset", "drift"]
 # kinds that may absorb part of it without being a false positive (a drift's or per-run offset's mean is an
 # offset). An effect with no library kind yet is scored as missed.
 MODELLED_BY: dict[str, tuple[list[str], list[str]]] = {
-    "ripple": ([], []),
+    "ripple": (["ripple"], []),
     "asym_coulomb": (["coulomb", "offset"], []),
     "run_offset": ([], ["offset"]),
     "drift": (["drift"], ["offset"]),
@@ -381,6 +381,12 @@ def library_truth(effects: list[dict]) -> tuple[dict[str, float], set[str]]:
     return true, allowed - set(true)
 
 
+def ripple_kind(effect: str) -> str:
+    """The library's ripple is a pair of columns (`ripple_sin`, `ripple_cos`: any phase); either found is the
+    ripple found (`--effects ripple:J` asks for both)."""
+    return "ripple" if effect in ("ripple_sin", "ripple_cos") else effect
+
+
 def identify(dynid: str, arm: str, runs: list[Path], out: Path, extra: list[str]) -> dict:
     cmd = [dynid, "identify", "--arm", arm, "--data", str(runs[0]), "--data", str(runs[1])]
     cmd += ["--validate", str(runs[2]), "--out", str(out), "--physical", "off", *extra]
@@ -392,9 +398,9 @@ def identify(dynid: str, arm: str, runs: list[Path], out: Path, extra: list[str]
     r = json.loads((out / "report.json").read_text())
     return {
         "validation": r["error"]["after"]["validation"]["overall"],
-        "found": sorted(f"{e['effect']}{e['joint']}" for e in r["effects_found"]),
+        "found": sorted({f"{ripple_kind(e['effect'])}{e['joint']}" for e in r["effects_found"]}),
         # Terms the per-joint guard added to the model (0-based joints in `selection`).
-        "guarded": sorted(f"{t['effect']}{t['joint'] + 1}" for t in r["selection"].get("guarded", [])),
+        "guarded": sorted({f"{ripple_kind(t['effect'])}{t['joint'] + 1}" for t in r["selection"].get("guarded", [])}),
         "not_identifiable": sorted(m["effect"] for m in r["not_identifiable"]),
         "cutoff_hz": r["data"]["train"][0]["derivative"]["cutoff_hz"],
         "seconds": secs,

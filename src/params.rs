@@ -45,7 +45,7 @@ use crate::tomlread::{Fail, Src, TableView};
 
 /// Names of the per-joint arrays an `[effects]` table may hold: the effects' coefficients, then
 /// the velocity scales of the friction terms.
-pub const KNOWN_EFFECTS: [&str; 10] = [
+pub const KNOWN_EFFECTS: [&str; 13] = [
     "viscous",
     "coulomb",
     "stribeck",
@@ -53,9 +53,12 @@ pub const KNOWN_EFFECTS: [&str; 10] = [
     "offset",
     "spring",
     "drift",
+    "ripple_sin",
+    "ripple_cos",
     "loadcoulomb",
     "sign_velocity",
     "stribeck_velocity",
+    "ripple_wavenumber",
 ];
 
 const TOP_KEYS: [&str; 3] = ["link", "effects", "allow_nonphysical"];
@@ -114,6 +117,10 @@ pub struct Effects {
     /// Slow drift `c` over a run: `τ += c·t`, `t` the time since the start of the run (s). Not in
     /// [`Effects::torque`], which has no time: a simulation starts without it.
     pub drift: Option<Vec<f64>>,
+    /// Position ripple `a`, `b`: `τ += a·sin(k·q) + b·cos(k·q)`, `k` from
+    /// [`Effects::ripple_wavenumber`].
+    pub ripple_sin: Option<Vec<f64>>,
+    pub ripple_cos: Option<Vec<f64>>,
     /// Load-dependent Coulomb friction `μ` (gear friction growing with the transmitted torque):
     /// `τ = u + μ·sign(q̇)·|u|`, `u` the rigid-body torque plus the other effects
     /// ([`Effects::load`]; `μ < 1`).
@@ -123,6 +130,9 @@ pub struct Effects {
     pub sign_velocity: Option<Vec<f64>>,
     /// Stribeck velocity `vs` (default 0.1 rad/s or m/s).
     pub stribeck_velocity: Option<Vec<f64>>,
+    /// Wavenumber `k` of the position ripple (rad⁻¹ or m⁻¹; required with `ripple_sin` or
+    /// `ripple_cos`).
+    pub ripple_wavenumber: Option<Vec<f64>>,
 }
 
 impl Effects {
@@ -134,6 +144,8 @@ impl Effects {
             && self.offset.is_none()
             && self.spring.is_none()
             && self.drift.is_none()
+            && self.ripple_sin.is_none()
+            && self.ripple_cos.is_none()
             && self.loadcoulomb.is_none()
             && self.stribeck.is_none()
     }
@@ -144,6 +156,7 @@ impl Effects {
         Scales {
             coulomb_v: at(&self.sign_velocity, Scales::EXACT.coulomb_v),
             stribeck_v: at(&self.stribeck_velocity, Scales::EXACT.stribeck_v),
+            ripple_k: at(&self.ripple_wavenumber, 0.0),
         }
     }
 
@@ -161,7 +174,7 @@ impl Effects {
     }
 
     /// Every `[effects]` array with its key, in [`KNOWN_EFFECTS`] order (the file's order).
-    pub fn arrays(&self) -> [(&'static str, &Option<Vec<f64>>); 10] {
+    pub fn arrays(&self) -> [(&'static str, &Option<Vec<f64>>); 13] {
         [
             ("viscous", &self.viscous),
             ("coulomb", &self.coulomb),
@@ -170,9 +183,12 @@ impl Effects {
             ("offset", &self.offset),
             ("spring", &self.spring),
             ("drift", &self.drift),
+            ("ripple_sin", &self.ripple_sin),
+            ("ripple_cos", &self.ripple_cos),
             ("loadcoulomb", &self.loadcoulomb),
             ("sign_velocity", &self.sign_velocity),
             ("stribeck_velocity", &self.stribeck_velocity),
+            ("ripple_wavenumber", &self.ripple_wavenumber),
         ]
     }
 
@@ -186,18 +202,22 @@ impl Effects {
             Effect::Armature => &mut self.armature,
             Effect::Spring => &mut self.spring,
             Effect::Drift => &mut self.drift,
+            Effect::RippleSin => &mut self.ripple_sin,
+            Effect::RippleCos => &mut self.ripple_cos,
             Effect::LoadCoulomb => &mut self.loadcoulomb,
         }
     }
 
     /// The additive effects and their coefficients, in summation order.
-    fn additive(&self) -> [(Effect, &Option<Vec<f64>>); 5] {
+    fn additive(&self) -> [(Effect, &Option<Vec<f64>>); 7] {
         [
             (Effect::Viscous, &self.viscous),
             (Effect::Coulomb, &self.coulomb),
             (Effect::Armature, &self.armature),
             (Effect::Offset, &self.offset),
             (Effect::Spring, &self.spring),
+            (Effect::RippleSin, &self.ripple_sin),
+            (Effect::RippleCos, &self.ripple_cos),
         ]
     }
 
@@ -251,6 +271,7 @@ impl Clone for ParamsError {
             },
             ParamsErrorKind::NonPhysical(n) => ParamsErrorKind::NonPhysical(*n),
             ParamsErrorKind::BothInertias => ParamsErrorKind::BothInertias,
+            ParamsErrorKind::RippleWithoutWavenumber => ParamsErrorKind::RippleWithoutWavenumber,
             ParamsErrorKind::LoadFrictionRange { joint, value } => {
                 ParamsErrorKind::LoadFrictionRange {
                     joint: *joint,
@@ -302,6 +323,8 @@ pub enum ParamsErrorKind {
         joint: usize,
         value: f64,
     },
+    /// Ripple coefficients without their wavenumber.
+    RippleWithoutWavenumber,
     /// A friction velocity scale that is negative (or zero where it divides).
     Velocity {
         key: String,
@@ -364,6 +387,10 @@ impl fmt::Display for ParamsErrorKind {
             ParamsErrorKind::LoadFrictionRange { joint, value } => write!(
                 f,
                 "joint {joint}: {value} is not a load-dependent friction coefficient — it is a fraction of the transmitted torque, 0 <= mu < 1"
+            ),
+            ParamsErrorKind::RippleWithoutWavenumber => write!(
+                f,
+                "ripple coefficients without `ripple_wavenumber` — give each joint's k (rad^-1), the ripple is a·sin(k·q) + b·cos(k·q)"
             ),
             ParamsErrorKind::Velocity { key, joint, zero_ok } => write!(
                 f,
@@ -628,6 +655,22 @@ fn read_effects(t: &TableView<'_>, dof: usize) -> Result<Effects, ParamsError> {
             });
         }
     }
+    let (ripple_sin, ripple_cos) = (
+        t.f64_array_opt("ripple_sin", Some(dof))?,
+        t.f64_array_opt("ripple_cos", Some(dof))?,
+    );
+    let ripple_wavenumber = t.f64_array_opt("ripple_wavenumber", Some(dof))?;
+    if ripple_wavenumber.is_none() {
+        if let Some(key) = [("ripple_sin", &ripple_sin), ("ripple_cos", &ripple_cos)]
+            .into_iter()
+            .find_map(|(k, v)| v.is_some().then_some(k))
+        {
+            return Err(ParamsError {
+                loc: t.loc_of(key),
+                kind: Box::new(ParamsErrorKind::RippleWithoutWavenumber),
+            });
+        }
+    }
     let velocity = |key: &str, zero_ok: bool| -> Result<Option<Vec<f64>>, ParamsError> {
         let v = t.f64_array_opt(key, Some(dof))?;
         if let Some(j) = v
@@ -654,9 +697,12 @@ fn read_effects(t: &TableView<'_>, dof: usize) -> Result<Effects, ParamsError> {
         offset: t.f64_array_opt("offset", Some(dof))?,
         spring: t.f64_array_opt("spring", Some(dof))?,
         drift: t.f64_array_opt("drift", Some(dof))?,
+        ripple_sin,
+        ripple_cos,
         loadcoulomb,
         sign_velocity: velocity("sign_velocity", true)?,
         stribeck_velocity: velocity("stribeck_velocity", false)?,
+        ripple_wavenumber,
     })
 }
 
@@ -694,4 +740,36 @@ pub fn check_physical(m: f64, inertia_com: &[f64; 6]) -> Result<(), NonPhysical>
         });
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const LINK: &str = "[[link]]\nm = 0.0\n";
+
+    /// The ripple in a params file is `a·sin(k·q) + b·cos(k·q)` (closed form), and a ripple
+    /// without its wavenumber is an error that names the key.
+    #[test]
+    fn ripple_round_trips_through_a_params_file() {
+        let text = format!(
+            "{LINK}[effects]\nripple_sin = [0.2]\nripple_cos = [-0.1]\nripple_wavenumber = [7.0]\n"
+        );
+        let p = InertialParams::from_str(&text, "r.toml", 1, &ParamsOptions::default()).unwrap();
+        let q = 0.3f64;
+        let want = 0.2 * (7.0 * q).sin() - 0.1 * (7.0 * q).cos();
+        assert!((p.effects.torque(0, q, 0.0, 0.0) - want).abs() < 1e-15);
+        let again =
+            InertialParams::from_str(&p.to_toml(&[]), "again.toml", 1, &ParamsOptions::default())
+                .unwrap();
+        assert_eq!(again.effects, p.effects);
+        let bad = format!("{LINK}[effects]\nripple_cos = [0.1]\n");
+        let e = InertialParams::from_str(&bad, "bad.toml", 1, &ParamsOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("bad.toml") && e.contains("ripple_wavenumber"),
+            "{e}"
+        );
+    }
 }

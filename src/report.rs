@@ -208,6 +208,10 @@ pub fn json_report(o: &Outcome, command: &str) -> Value {
             "trials": w.trials,
             "definition": "the Coulomb column is tanh(dq / v), v = fraction x the joint's RMS training velocity; each fraction refits the model, judged by the geometric mean over the compared joints of the held-out relative RMS error (by run, or by block with one file); the default 0.01 is kept unless another lowers it by more than 0.1 %",
         })),
+        "ripple": {
+            "scans": o.ripple,
+            "definition": "per scanned joint, the wavenumber k (rad^-1) whose sin(k q), cos(k q) best fit the residual of the model selected without them (periodogram, k from max(2, 2 pi / range of q) to 60), the share of the residual variance they explain in sample, the prominence (the peak's power over the median of its neighbouring wavenumbers' powers) and whether it is significant (prominence >= log2(m / 0.01), m independent wavenumbers scanned; only then, with --effects auto, is the pair searched), and whether the pair then passed the selection test",
+        },
         "estimator": "weighted least squares (per-joint 1/sigma), incremental QR, parallel zero-phase filtering of tau and regressor; std by block jackknife; then the physically consistent estimate closest to it in the same weighted metric (`physical`)",
         "physical": physical::json(o),
         "guard": guard::json(o),
@@ -616,6 +620,7 @@ fn data_section(m: &mut String, o: &Outcome) {
         }
     }
     width_section(m, o);
+    ripple_section(m, o);
     let sm = o.train.first().map(|f| f.smoothing).unwrap_or_default();
     let _ = writeln!(
         m,
@@ -659,6 +664,34 @@ fn width_section(m: &mut String, o: &Outcome) {
             t.fraction,
             per.join(" / "),
             pct(t.score)
+        );
+    }
+}
+
+/// The ripple scan's table (nothing when no joint was scanned).
+fn ripple_section(m: &mut String, o: &Outcome) {
+    if o.ripple.is_empty() {
+        return;
+    }
+    let _ = writeln!(
+        m,
+        "\nPosition ripple: per joint, the wavenumber k whose sin(k·q), cos(k·q) best fit the residual of the model without them (periodogram); a peak that stands out of its neighbours more than noise would (prominence: its power over their median) is then tested like any effect.\n"
+    );
+    let _ = writeln!(
+        m,
+        "| joint | k (1/rad) | residual variance explained | prominence | in the model |"
+    );
+    let _ = writeln!(m, "|---|---|---|---|---|");
+    for s in &o.ripple {
+        let _ = writeln!(
+            m,
+            "| {} | {:.3} | {} | {:.1}{} | {} |",
+            s.joint + 1,
+            s.k,
+            pct(s.share),
+            s.prominence,
+            if s.significant { "" } else { " (noise)" },
+            if s.accepted { "yes" } else { "no" }
         );
     }
 }

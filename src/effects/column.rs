@@ -14,6 +14,9 @@ pub struct Scales {
     pub coulomb_v: f64,
     /// Stribeck velocity.
     pub stribeck_v: f64,
+    /// Wavenumber of the position ripple columns (rad⁻¹ or m⁻¹; `sin(k·q)`, `cos(k·q)`); 0 when
+    /// the joint has none.
+    pub ripple_k: f64,
 }
 
 impl Scales {
@@ -22,6 +25,7 @@ impl Scales {
     pub const EXACT: Scales = Scales {
         coulomb_v: 0.0,
         stribeck_v: 0.1,
+        ripple_k: 0.0,
     };
 
     /// The default Coulomb smoothing velocity as a fraction of the RMS joint velocity.
@@ -39,6 +43,7 @@ impl Scales {
         Scales {
             coulomb_v: Self::COULOMB_FRACTION * rms,
             stribeck_v: Self::STRIBECK_FRACTION * rms,
+            ripple_k: 0.0,
         }
     }
 
@@ -47,6 +52,14 @@ impl Scales {
     pub fn with_coulomb_fraction(&self, fraction: f64) -> Self {
         Scales {
             coulomb_v: fraction * self.stribeck_v / Self::STRIBECK_FRACTION,
+            ..*self
+        }
+    }
+
+    /// The same scales with ripple wavenumber `k`.
+    pub fn with_ripple(&self, k: f64) -> Self {
+        Scales {
+            ripple_k: k,
             ..*self
         }
     }
@@ -124,6 +137,8 @@ impl Effect {
             Effect::Armature => st.ddq,
             Effect::Spring => st.q,
             Effect::Drift => st.t,
+            Effect::RippleSin => (st.scales.ripple_k * st.q).sin(),
+            Effect::RippleCos => (st.scales.ripple_k * st.q).cos(),
             Effect::LoadCoulomb => st.sign() * load.abs(),
         }
     }

@@ -10,12 +10,15 @@
 //! | `armature` | `q̈ⱼ` (rotor inertia reflected through the gear) | kg·m² |
 //! | `spring` | `qⱼ` (linear spring; its rest angle appears as an offset) | N·m/rad |
 //! | `drift` | `t`, the time since the start of the run (slow thermal drift: a motor's and gear's friction and a torque sensor's zero change as they warm up, over minutes — nearly linear over one run) | N·m/s |
+//! | `ripple_sin`, `ripple_cos` | `sin(kⱼ·qⱼ)`, `cos(kⱼ·qⱼ)`, `kⱼ` the joint's ripple wavenumber (rad⁻¹), found from the residual (position-dependent ripple: cogging, gear and sensor ripple; the pair is any phase) | N·m |
 //! | `loadcoulomb` | `tanh(q̇ⱼ / vⱼ) · |τ̂ⱼ|`, τ̂ⱼ the rigid-body torque of joint j (load-dependent friction: a gear's friction grows with the torque it transmits) | N·m per N·m |
 //!
 //! `loadcoulomb` is bilinear (its column holds the rigid-body parameters), so it is fitted in two
 //! stages: τ̂ comes from the rigid-body part of the model selected without it, held fixed; the
 //! column is then filtered and tested like any other ([`Effect::LOADED`] are searched after the
-//! rest, in the identification's second stage).
+//! rest, in the identification's second stage). The ripple pair's wavenumber is not linear either:
+//! it is the peak of the periodogram of the residual against qⱼ of the model selected without
+//! them ([`crate::identify::ripple`]), then the pair is tested like any other column.
 //!
 //! Asymmetric Coulomb friction (`Fc⁺` for q̇ > 0, `Fc⁻` for q̇ < 0) is `coulomb` + `offset` while
 //! the joint moves: `Fc⁺·[q̇>0] − Fc⁻·[q̇<0] = ½(Fc⁺+Fc⁻)·sgn q̇ + ½(Fc⁺−Fc⁻)`. At rest the offset
@@ -53,6 +56,8 @@ pub enum Effect {
     Armature,
     Spring,
     Drift,
+    RippleSin,
+    RippleCos,
     #[serde(rename = "loadcoulomb")]
     LoadCoulomb,
 }
@@ -73,6 +78,16 @@ impl Effect {
     /// [`Effect::ALL`], with that fit's parameters.
     pub const LOADED: [Effect; 1] = [Effect::LoadCoulomb];
 
+    /// Position ripple, `sin(kⱼ·qⱼ)` and `cos(kⱼ·qⱼ)`: the wavenumber `kⱼ` comes from the
+    /// residual of the model without them ([`crate::identify::ripple`]), so they are searched
+    /// after [`Effect::ALL`], before [`Effect::LOADED`].
+    pub const RIPPLE: [Effect; 2] = [Effect::RippleSin, Effect::RippleCos];
+
+    /// Whether the column needs the joint's ripple wavenumber (see [`Effect::RIPPLE`]).
+    pub fn is_ripple(self) -> bool {
+        Effect::RIPPLE.contains(&self)
+    }
+
     /// Whether the column needs the rigid-body torque (see [`Effect::LOADED`]).
     pub fn needs_load(self) -> bool {
         Effect::LOADED.contains(&self)
@@ -80,7 +95,10 @@ impl Effect {
 
     /// Every effect, by name.
     pub fn named() -> impl Iterator<Item = Effect> {
-        Effect::ALL.into_iter().chain(Effect::LOADED)
+        Effect::ALL
+            .into_iter()
+            .chain(Effect::RIPPLE)
+            .chain(Effect::LOADED)
     }
 
     pub fn name(self) -> &'static str {
@@ -92,6 +110,8 @@ impl Effect {
             Effect::Armature => "armature",
             Effect::Spring => "spring",
             Effect::Drift => "drift",
+            Effect::RippleSin => "ripple_sin",
+            Effect::RippleCos => "ripple_cos",
             Effect::LoadCoulomb => "loadcoulomb",
         }
     }
@@ -105,7 +125,11 @@ impl Effect {
     pub fn unit(self) -> &'static str {
         match self {
             Effect::Viscous => "N·m·s/rad",
-            Effect::Coulomb | Effect::Stribeck | Effect::Offset => "N·m",
+            Effect::Coulomb
+            | Effect::Stribeck
+            | Effect::Offset
+            | Effect::RippleSin
+            | Effect::RippleCos => "N·m",
             Effect::Armature => "kg·m²",
             Effect::Spring => "N·m/rad",
             Effect::Drift => "N·m/s",
@@ -148,23 +172,29 @@ pub fn parse_list(spec: &str, dof: usize) -> Result<EffectsSpec, String> {
             Some((n, j)) => (n, Some(j)),
             None => (item, None),
         };
-        let effect = Effect::parse(name).ok_or_else(|| {
-            format!("--effects: unknown effect `{name}` — known: {known}; or `auto`, `none`")
-        })?;
-        match joint {
-            None => terms.extend((0..dof).map(|joint| Term { effect, joint })),
-            Some(j) => {
-                let j: usize = j
-                    .trim()
-                    .parse()
-                    .map_err(|_| format!("--effects: `{item}`: joint must be a number 1..{dof}"))?;
-                if j == 0 || j > dof {
-                    return Err(format!("--effects: `{item}`: joint must be 1..{dof}"));
+        // `ripple` is the pair (any phase).
+        let effects: Vec<Effect> = if name.trim().eq_ignore_ascii_case("ripple") {
+            Effect::RIPPLE.to_vec()
+        } else {
+            vec![Effect::parse(name).ok_or_else(|| {
+                format!("--effects: unknown effect `{name}` — known: {known}, ripple (the pair); or `auto`, `none`")
+            })?]
+        };
+        for effect in effects {
+            match joint {
+                None => terms.extend((0..dof).map(|joint| Term { effect, joint })),
+                Some(j) => {
+                    let j: usize = j.trim().parse().map_err(|_| {
+                        format!("--effects: `{item}`: joint must be a number 1..{dof}")
+                    })?;
+                    if j == 0 || j > dof {
+                        return Err(format!("--effects: `{item}`: joint must be 1..{dof}"));
+                    }
+                    terms.push(Term {
+                        effect,
+                        joint: j - 1,
+                    });
                 }
-                terms.push(Term {
-                    effect,
-                    joint: j - 1,
-                });
             }
         }
     }

@@ -77,6 +77,12 @@ impl Observation {
                 .filter(|t| t.effect == Effect::Drift)
                 .map(|&t| (t, vec!["time, not the motion".to_string()])),
         );
+        // A ripple's wavenumber is found from identification's residual, unknown before it.
+        dropped.extend(
+            all.iter()
+                .filter(|t| t.effect.is_ripple())
+                .map(|&t| (t, vec!["a wavenumber identification finds".to_string()])),
+        );
         let mut terms: Vec<Term> = all
             .into_iter()
             .filter(|t| !dropped.iter().any(|(d, _)| d == t))

@@ -47,11 +47,11 @@ pub(super) fn make_layout(
                 })
                 .collect(),
         ),
-        // Load-dependent terms come in the second stage (see `load_stage`).
+        // Ripple and load-dependent terms come in later stages (see `ripple`, `load_stage`).
         EffectsSpec::Fixed(t) => (
             t.iter()
                 .copied()
-                .filter(|t| !t.effect.needs_load())
+                .filter(|t| !t.effect.needs_load() && !t.effect.is_ripple())
                 .collect(),
             Vec::new(),
         ),

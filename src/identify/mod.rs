@@ -40,7 +40,9 @@
 //!    interpolated between grid samples): relative RMS per joint `‖τ̂ⱼ−τⱼ‖/‖τⱼ‖` and overall
 //!    `‖τ̂−τ‖/‖τ‖`, for the declared (rigid) and the augmented model, on training and
 //!    validation data, and held out (each time block predicted by the fit without it).
-//! 6. **Effect selection** (`select.rs`, [`select`]) on the problem; load-dependent effects
+//! 6. **Effect selection** (`select.rs`, [`select`]) on the problem; position ripple
+//!    ([`ripple`]: a wavenumber per joint from the residual's periodogram, then the pair
+//!    searched); load-dependent effects
 //!    ([`Effect::LOADED`](crate::effects::Effect::LOADED)) in a second stage on top of the first
 //!    stage's model (`load_stage.rs`: their columns hold its torque, so the layout and problem
 //!    are rebuilt); when one is found, the scan is repeated with it in its models
@@ -74,6 +76,7 @@ mod prepare;
 mod problem;
 mod regress;
 pub mod residual_map;
+pub mod ripple;
 mod row_table;
 mod rows;
 mod scan;
@@ -349,8 +352,9 @@ fn run_prepared_with(
         .filter(|t| !weak.iter().any(|w| w.joint == t.joint))
         .collect();
     let first = select::first_stage(problem, train, cfg, declared, &searched)?;
-    let selected = load_stage(base, train, cfg, first)?;
     let skip: Vec<usize> = weak.iter().map(|w| w.joint).collect();
+    let (first, ripple_scans) = ripple::ripple_stage(base, train, cfg, first, &skip)?;
+    let selected = load_stage(base, train, cfg, first)?;
     let (selected, width_scan) = match cfg.coulomb_width {
         None => coulomb_width::choose_width(base, (train, grids), cfg.blocks, selected, &skip),
         Some(_) => (selected, None),
@@ -402,6 +406,7 @@ fn run_prepared_with(
     }
     out.guard = guard;
     out.coulomb_width = width_scan;
+    out.ripple = ripple_scans;
     out.warnings
         .extend(identifiability::fixed_warning(&out.fixed));
     out.warnings

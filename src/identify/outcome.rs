@@ -141,6 +141,8 @@ pub struct Outcome {
     pub guard: Option<super::guard::Guard>,
     /// The Coulomb width scan (`None`: the model has no Coulomb column, or load-dependent ones).
     pub coulomb_width: Option<super::coulomb_width::WidthScan>,
+    /// The ripple wavenumber scan per joint scanned (empty when none was).
+    pub ripple: Vec<super::ripple::RippleScan>,
 }
 
 /// Stage 7: the outcome of an identification whose effects are selected (`selected`, the
@@ -261,6 +263,7 @@ pub(super) fn assemble(
         plain,
         guard: None,
         coulomb_width: None,
+        ripple: Vec::new(),
     })
 }
 

@@ -148,7 +148,11 @@ pub(super) fn consistent(
                 lo: 0.0,
                 hi: LOAD_FRICTION_MAX,
             }),
-            Effect::Offset | Effect::Spring | Effect::Drift => {}
+            Effect::Offset
+            | Effect::Spring
+            | Effect::Drift
+            | Effect::RippleSin
+            | Effect::RippleCos => {}
         }
     }
     cp.prior = opts.prior.as_ref().map(|p| DVector::from_column_slice(p));

@@ -24,6 +24,9 @@ pub fn params(o: &Outcome) -> Option<InertialParams> {
     if e.coulomb.is_some() || e.stribeck.is_some() || e.loadcoulomb.is_some() {
         e.sign_velocity = Some(o.scales.iter().map(|s| s.coulomb_v).collect());
     }
+    if e.ripple_sin.is_some() || e.ripple_cos.is_some() {
+        e.ripple_wavenumber = Some(o.scales.iter().map(|s| s.ripple_k).collect());
+    }
     if e.stribeck.is_some() {
         e.stribeck_velocity = Some(o.scales.iter().map(|s| s.stribeck_v).collect());
     }

@@ -122,6 +122,8 @@ def main(argv: list[str] | None = None) -> int:
         + effect(params, "armature", n) * acc
         + effect(params, "offset", n)
         + effect(params, "spring", n) * q
+        + effect(params, "ripple_sin", n) * np.sin(effect(params, "ripple_wavenumber", n) * q)
+        + effect(params, "ripple_cos", n) * np.cos(effect(params, "ripple_wavenumber", n) * q)
     )
     u = rigid + extra
     mu = effect(params, "loadcoulomb", n)
