@@ -10,7 +10,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .algebra import Scalar, Vec, add, cross, dot, matTvec, matvec, mul, neg, sub, total, vadd
+import casadi as ca
+
+from .algebra import Scalar, Vec, add, cross, dot, is_const, is_zero, matTvec, matvec, mul, neg, sub, total, vadd
 from .kinematics import LinkTransform
 
 PARAMS = ("XX", "XY", "XZ", "YY", "YZ", "ZZ", "MX", "MY", "MZ", "M")
@@ -30,8 +32,10 @@ def forward(tf: list[LinkTransform], dq: list[Scalar], ddq: list[Scalar], gravit
     vd: Vec = [neg(g) for g in gravity]
     out = []
     for i, t in enumerate(tf):
-        # acceleration of origin i expressed in frame i-1, then rotated into frame i
-        vd_prev = vadd(vd, vadd(cross(wd, t.p), cross(w, cross(w, t.p))))
+        # acceleration of origin i expressed in frame i-1, then rotated into frame i: U p, with the
+        # U of link i-1 whose entries its force reads too (fewer products than wd x p + w x (w x p))
+        U = u_matrix(w, wd)
+        vd_prev = vadd(vd, [dot(U[r], t.p) for r in range(3)])
         vd_i = matTvec(t.R, vd_prev)
         w_rot = matTvec(t.R, w)
         wd_rot = matTvec(t.R, wd)
@@ -49,13 +53,29 @@ def forward(tf: list[LinkTransform], dq: list[Scalar], ddq: list[Scalar], gravit
     return out
 
 
+def _products(w: Vec) -> tuple[Scalar, ...]:
+    """``wx², wy², wz², wx·wy, wx·wz, wy·wz``."""
+    wx, wy, wz = w
+    return mul(wx, wx), mul(wy, wy), mul(wz, wz), mul(wx, wy), mul(wx, wz), mul(wy, wz)
+
+
+def u_matrix(w: Vec, wd: Vec) -> list[list[Scalar]]:
+    """``U = [wd]x + [w]x [w]x``: a point at ``s`` in the link accelerates by ``U s`` relative to the
+    origin. Its columns are the force per unit first moment, and ``U p`` carries the acceleration to
+    the next origin, so one set of entries (from the six products of ``w``) serves both."""
+    xx, yy, zz, xy, xz, yz = _products(w)
+    return [
+        [neg(add(yy, zz)), sub(xy, wd[2]), add(xz, wd[1])],
+        [add(xy, wd[2]), neg(add(xx, zz)), sub(yz, wd[0])],
+        [sub(xz, wd[1]), add(yz, wd[0]), neg(add(xx, yy))],
+    ]
+
+
 def link_wrench_columns(m: LinkMotion) -> list[tuple[Vec, Vec]]:
     """(force, moment about the origin) in the link frame per unit parameter, in PARAMS order."""
     w, wd, vd = m.w, m.wd, m.vd
-    wx, wy, wz = w
     z3: Vec = [0.0, 0.0, 0.0]
-    xx, yy, zz = mul(wx, wx), mul(wy, wy), mul(wz, wz)
-    xy, xz, yz = mul(wx, wy), mul(wx, wz), mul(wy, wz)
+    xx, yy, zz, xy, xz, yz = _products(w)
     # Moments I*wd + w x (I w) for each unit inertia component
     n_inertia = [
         [wd[0], xz, neg(xy)],  # XX
@@ -66,12 +86,12 @@ def link_wrench_columns(m: LinkMotion) -> list[tuple[Vec, Vec]]:
         [yz, neg(xz), wd[2]],  # ZZ
     ]
     cols: list[tuple[Vec, Vec]] = [(z3, n) for n in n_inertia]
-    # First moments: f = wd x s + w x (w x s), n = s x vd for s = e_x, e_y, e_z
+    # First moments: f = wd x s + w x (w x s) = U s, n = s x vd for s = e_x, e_y, e_z
+    U = u_matrix(w, wd)
     for k in range(3):
         s: Vec = [0.0, 0.0, 0.0]
         s[k] = 1.0
-        f = vadd(cross(wd, s), cross(w, cross(w, s)))
-        cols.append((f, cross(s, vd)))
+        cols.append(([U[r][k] for r in range(3)], cross(s, vd)))
     cols.append((list(vd), z3))  # M
     return cols
 
@@ -108,6 +128,24 @@ def regressor(tf: list[LinkTransform], motion: list[LinkMotion], wanted: set[int
     return Y
 
 
+def combine(terms: list[tuple[Scalar, Scalar]]) -> Scalar:
+    """``Σ pₖ eₖ`` with the terms whose ``eₖ`` are one expression up to sign taken together,
+    ``(p₁ − p₂) e``: one product fewer (the moment of ``XX`` and ``ZZ`` about ``y``, ``(XX − ZZ) ωx ωz``)."""
+    groups: list[tuple[Scalar, Scalar]] = []  # (expression, its coefficient)
+    for coef, e in terms:
+        if is_zero(coef) or is_zero(e):
+            continue
+        if not is_const(e) and e.is_op(ca.OP_NEG):
+            coef, e = neg(coef), e.dep(0)
+        for g, (ge, gc) in enumerate(groups):
+            if not is_const(e) and not is_const(ge) and ca.is_equal(ge, e, 2):
+                groups[g] = (ge, add(gc, coef))
+                break
+        else:
+            groups.append((e, coef))
+    return total(*(mul(c, e) for e, c in groups))
+
+
 def rnea(tf: list[LinkTransform], motion: list[LinkMotion], p: list[Scalar]) -> list[Scalar]:
     """Joint forces for parameters p (10 per link, PARAMS order, about the link origins)."""
     n = len(tf)
@@ -116,8 +154,8 @@ def rnea(tf: list[LinkTransform], motion: list[LinkMotion], p: list[Scalar]) -> 
     mo: Vec = [0.0, 0.0, 0.0]
     for i in range(n - 1, -1, -1):
         cols = link_wrench_columns(motion[i])
-        fi = [total(*(mul(p[10 * i + k], cols[k][0][r]) for k in range(10))) for r in range(3)]
-        ni = [total(*(mul(p[10 * i + k], cols[k][1][r]) for k in range(10))) for r in range(3)]
+        fi = [combine([(p[10 * i + k], cols[k][0][r]) for k in range(10)]) for r in range(3)]
+        ni = [combine([(p[10 * i + k], cols[k][1][r]) for k in range(10)]) for r in range(3)]
         if i < n - 1:
             f, mo = transport(tf[i + 1], f, mo)
         f, mo = vadd(f, fi), vadd(mo, ni)
