@@ -330,3 +330,58 @@ def test_fuse_folds_each_single_use_product_into_its_sum_with_the_right_signs():
     for mul_add in (_unfused, _fused):
         env = {**{n: list(v) for n, v in inputs.items()}, "out": [0.0] * len(k.outputs)}
         assert np.allclose(run(body, mul_add, env), want, rtol=1e-13, atol=1e-13), mul_add.__name__
+
+
+def test_reassociate_adds_the_latest_term_last_where_a_kernel_is_bound_by_latency(monkeypatch):
+    """`reassociate` (codegen/reassociate.py): a term ready late (a chain of products) enters its
+    sum last, whatever CasADi's order, the sum's single-use product fused; run as Python, within
+    an ulp of CasADi's value. `emit` re-associates the PUMA 560 inverse dynamics (its longest
+    dependency chain shorter, its values within 1e-13 of CasADi's) but keeps CasADi's association
+    in its base regressor, bound by throughput."""
+    from codegen import emit_rust
+    from codegen.reassociate import critical_path
+
+    def run(body, env):
+        for ln in body:
+            exec(_python(ln.rstrip(";").removeprefix("let ")), {"mul_add": _unfused}, env)
+        return env["out"]
+
+    x = ca.SX.sym("x", 4)
+    a, b, c, d = x[0], x[1], x[2], x[3]
+    f = ca.Function("f", [x], [ca.cse(_sx([(((a * b) * c) * d + a) + b * c]))])
+    lines = emit_rust.emit(f, lambda _inp, nz: f"v[{nz}]", 1, reorder=False).lines
+    # (a·b)·c, then a + b·c from the early terms, then the late product fused on last.
+    assert [ln.split(" = ", 1)[1] for ln in lines] == [
+        "v[0] * v[1];",
+        "x0 * v[2];",
+        "crate::trig::mul_add(v[1], v[2], v[0]);",
+        "crate::trig::mul_add(x1, v[3], x6);",
+        "x5;",
+    ], lines
+    v = [0.3, -1.7, 2.5, 1.1]
+    assert np.allclose(run(lines, {"v": v, "out": [0.0]}), np.array(f(v)).ravel(), rtol=1e-15)
+
+    arm = load(ROOT / "arms" / "puma560.toml")
+    sym, theta, kernels = derive(arm, analyse(arm))
+    vectors = {"trig": sym.trig, "q": sym.q, "dq": sym.dq, "ddq": sym.ddq, "tau": sym.tau, "theta": theta}
+    for name, reassociated in (("inverse_dynamics", True), ("base_regressor", False)):
+        k = next(k for k in kernels if k.name == name)
+        g = ca.Function(k.name, [vectors[n] for n in k.inputs], [ca.cse(_sx(k.outputs))])
+
+        def name_of(inp: int, nz: int, k=k) -> str:  # the kernels' names: c1, s1, … for the trigonometry
+            if k.inputs[inp] == "trig":
+                return f"{'c' if nz % 2 == 0 else 's'}{nz // 2 + 1}"
+            return f"{k.inputs[inp]}[{nz}]"
+
+        body = emit_rust.emit(g, name_of, len(k.outputs), reorder=False).lines
+        with monkeypatch.context() as mp:
+            mp.setattr(emit_rust, "LATENCY_BOUND", 0)
+            written = emit_rust.emit(g, name_of, len(k.outputs), reorder=False).lines
+        assert (body != written) == reassociated, name
+        assert (critical_path(body) < critical_path(written)) == reassociated, name
+        rng = np.random.default_rng(5)
+        inputs = {n: list(rng.uniform(-1.0, 1.0, size=g.size1_in(i))) for i, n in enumerate(k.inputs)}
+        want = np.array(g(*[inputs[n] for n in k.inputs])).ravel()
+        env = {**{n: list(v) for n, v in inputs.items()}, "out": [0.0] * len(k.outputs)}
+        env |= {name_of(0, j): t for j, t in enumerate(inputs.get("trig", []))}
+        assert np.allclose(run(body, env), want, rtol=1e-13, atol=1e-13), name
