@@ -6,7 +6,7 @@ use super::base::BaseModel;
 use super::layout::Layout;
 use super::prepare::Prepared;
 use super::problem::{with_hint, Problem};
-use super::select::{select, Rules, Selected, Selection};
+use super::select::{chain_stages, select, Rules, Selected};
 use super::{Config, IdentifyError, RankError};
 use crate::effects::{Effect, EffectsSpec, Term};
 
@@ -102,7 +102,7 @@ pub(super) fn load_stage(
         first_stage_load(&problem, &first.terms, l2.ncols()).map_err(|e| with_hint(e, train))?;
     let p2 = Problem::build(base, l2, train, cfg.blocks);
     let start: Vec<Term> = first.terms.iter().chain(&fixed).copied().collect();
-    let second = select(&p2, &start, &search, &cfg.rules)?;
+    let mut second = select(&p2, &start, &search, &cfg.rules)?;
     if fixed.is_empty() && second.steps.is_empty() {
         let mut first = first;
         first.collinear.extend(second.collinear);
@@ -125,44 +125,24 @@ pub(super) fn load_stage(
     // A first-stage effect may have stood in for the load-dependent one (a Coulomb term for
     // the mean of load-dependent friction): each must pass the same test again against the
     // final model without it, or it goes (last added first).
-    let mut terms = second.terms;
     let mut dropped = Vec::new();
     let once = Rules {
         max_steps: 1,
         ..cfg.rules
     };
     for s in first.steps.iter().rev() {
-        let without: Vec<Term> = terms.iter().copied().filter(|t| *t != s.added).collect();
+        let without: Vec<Term> = second
+            .terms
+            .iter()
+            .copied()
+            .filter(|t| *t != s.added)
+            .collect();
         if select(&p2, &without, &[s.added], &once)?.steps.is_empty() {
-            terms = without;
+            second.terms = without;
             dropped.push(s.added);
         }
     }
-    let declared: Vec<Term> = declared.into_iter().chain(fixed).collect();
-    let mut model: Vec<String> = declared.iter().map(Term::label).collect();
-    let mut steps = Vec::new();
-    for mut s in first.steps.into_iter().chain(second.steps) {
-        if !dropped.contains(&s.added) {
-            model.push(s.label.clone());
-            s.model = model.clone();
-            steps.push(s);
-        }
-    }
-    let mut collinear = first.collinear;
-    collinear.extend(second.collinear);
-    Ok(Selected {
-        problem: p2,
-        selection: Selection {
-            steps,
-            terms,
-            stopped_on: second.stopped_on,
-            collinear,
-            dropped: dropped.iter().map(Term::label).collect(),
-            guarded: Vec::new(),
-            plain: Vec::new(),
-        },
-        declared,
-    })
+    Ok(chain_stages(p2, first, second, declared, fixed, &dropped))
 }
 
 /// The coefficients of `terms`' fit on `problem` over `ncols` columns, zero elsewhere: the

@@ -17,7 +17,7 @@ use super::layout::Layout;
 use super::prepare::{cores, Prepared};
 use super::problem::{with_hint, Problem};
 use super::rows::Rows;
-use super::select::{select, Selected, Selection};
+use super::select::{chain_stages, select, Selected};
 use super::{Config, IdentifyError};
 use crate::effects::{Effect, EffectsSpec, Term};
 
@@ -328,7 +328,7 @@ pub(super) fn ripple_stage(
     let l2 = with_ripple(&problem.layout, &scans, fixed.iter().chain(&search));
     let p2 = Problem::build(base, l2, train, cfg.blocks);
     let start: Vec<Term> = first.terms.iter().chain(&fixed).copied().collect();
-    let second = select(&p2, &start, &search, &cfg.rules)?;
+    let mut second = select(&p2, &start, &search, &cfg.rules)?;
     if fixed.is_empty() && second.steps.is_empty() {
         let mut first = first;
         first.collinear.extend(second.collinear);
@@ -347,32 +347,8 @@ pub(super) fn ripple_stage(
             .iter()
             .any(|t| t.effect.is_ripple() && t.joint == s.joint);
     }
-    let declared: Vec<Term> = declared.into_iter().chain(fixed).collect();
-    let mut model: Vec<String> = declared.iter().map(Term::label).collect();
-    let mut steps = Vec::new();
-    for mut s in first.steps.into_iter().chain(second.steps) {
-        model.push(s.label.clone());
-        s.model = model.clone();
-        steps.push(s);
-    }
-    let mut collinear = first.collinear;
-    collinear.extend(second.collinear);
-    Ok((
-        Selected {
-            problem: p2,
-            selection: Selection {
-                steps,
-                terms: second.terms,
-                stopped_on: second.stopped_on.or(first.stopped_on),
-                collinear,
-                dropped: first.dropped,
-                guarded: Vec::new(),
-                plain: Vec::new(),
-            },
-            declared,
-        },
-        scans,
-    ))
+    second.stopped_on = second.stopped_on.or(first.stopped_on.clone());
+    Ok((chain_stages(p2, first, second, declared, fixed, &[]), scans))
 }
 
 /// Each joint's periodogram peak ([`periodogram_peak`]); a joint of `fixed` that cannot be

@@ -253,6 +253,47 @@ pub fn select(
     })
 }
 
+/// The selection of two stages run one after the other, on `problem` (the second stage's):
+/// `first`'s steps, then `second`'s, each step's `model` the declared terms, `fixed` (declared for
+/// the second stage) and the steps up to it, leaving out the steps that added a `dropped` term.
+/// The final model's terms and why it stopped are `second`'s.
+pub(super) fn chain_stages(
+    problem: Problem,
+    first: Selection,
+    second: Selection,
+    declared: Vec<Term>,
+    fixed: Vec<Term>,
+    dropped: &[Term],
+) -> Selected {
+    let declared: Vec<Term> = declared.into_iter().chain(fixed).collect();
+    let mut model: Vec<String> = declared.iter().map(Term::label).collect();
+    let mut steps = Vec::new();
+    for mut s in first.steps.into_iter().chain(second.steps) {
+        if !dropped.contains(&s.added) {
+            model.push(s.label.clone());
+            s.model = model.clone();
+            steps.push(s);
+        }
+    }
+    let mut collinear = first.collinear;
+    collinear.extend(second.collinear);
+    let mut gone = first.dropped;
+    gone.extend(dropped.iter().map(Term::label));
+    Selected {
+        problem,
+        selection: Selection {
+            steps,
+            terms: second.terms,
+            stopped_on: second.stopped_on,
+            collinear,
+            dropped: gone,
+            guarded: Vec::new(),
+            plain: Vec::new(),
+        },
+        declared,
+    }
+}
+
 /// When no single candidate passes: effects that only show together on one joint (an offset with
 /// a spring, rotor inertia with an offset: each alone is partly absorbed by the rigid-body
 /// columns). For each joint, all its open candidates are added at once and the joint's held-out
