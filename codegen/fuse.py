@@ -14,21 +14,23 @@ from __future__ import annotations
 
 import re
 
-_LET = re.compile(r"^let (x\d+) = (.*);$")
-_PRODUCT = re.compile(r"^(\S+) \* (\S+)$")
-_SUM = re.compile(r"^(\S+) ([+-]) (\S+)$")
-_REF = re.compile(r"\bx\d+\b")
+# The statement grammar of an emitted body (shared by `reassociate` and `schedule`).
+LET = re.compile(r"^let (x\d+) = (.*);$")
+PRODUCT = re.compile(r"^(\S+) \* (\S+)$")
+SUM = re.compile(r"^(\S+) ([+-]) (\S+)$")
+REF = re.compile(r"\bx\d+\b")
 _LITERAL = re.compile(r"^\(?-?[0-9][0-9.eE+-]*\)?$")
 
 MUL_ADD = "crate::trig::mul_add"
 
 
 def negate(operand: str) -> str:
-    """`-operand`, as Rust source: a literal's sign flipped in the text (`0.5` ↔ `(-0.5)`)."""
+    """`-operand`, as Rust source: a literal's sign flipped in the text (`0.5` ↔ `(-0.5)`), a
+    leading minus dropped."""
     if _LITERAL.match(operand):
         text = operand.strip("()")
         return text[1:] if text.startswith("-") else f"({'-' + text})"
-    return f"-{operand}"
+    return operand[1:] if operand.startswith("-") else f"-{operand}"
 
 
 def fuse(lines: list[str]) -> list[str]:
@@ -38,17 +40,17 @@ def fuse(lines: list[str]) -> list[str]:
     uses: dict[str, int] = {}
     products: dict[str, tuple[str, str]] = {}
     for ln in lines:
-        m = _LET.match(ln)
+        m = LET.match(ln)
         rhs = m.group(2) if m else ln.split(" = ", 1)[1]
-        for r in _REF.findall(rhs):
+        for r in REF.findall(rhs):
             uses[r] = uses.get(r, 0) + 1
-        if m and (p := _PRODUCT.match(m.group(2))):
+        if m and (p := PRODUCT.match(m.group(2))):
             products[m.group(1)] = (p.group(1), p.group(2))
     folded: set[str] = set()
     out: list[str] = []
     for ln in lines:
-        m = _LET.match(ln)
-        s = _SUM.match(m.group(2)) if m else None
+        m = LET.match(ln)
+        s = SUM.match(m.group(2)) if m else None
         if s:
             left, op, right = s.groups()
             single = [x for x in (left, right) if x in products and uses.get(x) == 1 and x not in folded]
@@ -63,4 +65,4 @@ def fuse(lines: list[str]) -> list[str]:
                 folded.add(p)
                 ln = f"let {m.group(1)} = {MUL_ADD}({a}, {b}, {c});"
         out.append(ln)
-    return [ln for ln in out if not ((m := _LET.match(ln)) and m.group(1) in folded)]
+    return [ln for ln in out if not ((m := LET.match(ln)) and m.group(1) in folded)]

@@ -24,14 +24,9 @@ from __future__ import annotations
 import heapq
 import re
 
-from .fuse import MUL_ADD
+from .fuse import LET, MUL_ADD, PRODUCT, REF, SUM, negate
 
-_LET = re.compile(r"^let (x\d+) = (.*);$")
-_PRODUCT = re.compile(r"^(\S+) \* (\S+)$")
-_SUM = re.compile(r"^(\S+) ([+-]) (\S+)$")
 _NEG = re.compile(r"^-(x\d+)$")
-_REF = re.compile(r"\bx\d+\b")
-_LITERAL = re.compile(r"^\(?-?[0-9][0-9.eE+-]*\)?$")
 _TRIG = re.compile(r"^[sc]\d+$")
 _OPERAND = re.compile(r"[^\s*/+(),-]+")
 
@@ -50,27 +45,18 @@ def _when(ready: dict[str, int], v: str) -> int:
 def _cost(e: str) -> int:
     if e.startswith(MUL_ADD):
         return FMA
-    return NEG if _NEG.match(e) else MUL if _PRODUCT.match(e) else DIV if " / " in e else ADD
+    return NEG if _NEG.match(e) else MUL if PRODUCT.match(e) else DIV if " / " in e else ADD
 
 
 def critical_path(lines: list[str]) -> int:
     """Cycles of the longest chain of dependent operations in `lines` (the latencies above)."""
     ready: dict[str, int] = {}
     for ln in lines:
-        if m := _LET.match(ln):
+        if m := LET.match(ln):
             e = m.group(2)
             operands = _OPERAND.findall(e.removeprefix(MUL_ADD))
             ready[m.group(1)] = _cost(e) + max((_when(ready, r) for r in operands), default=0)
     return max(ready.values(), default=0)
-
-
-def negate(operand: str) -> str:
-    """`-operand`, as Rust source: a literal's sign flipped in the text (`0.5` ↔ `(-0.5)`), a
-    leading minus dropped."""
-    if _LITERAL.match(operand):
-        text = operand.strip("()")
-        return text[1:] if text.startswith("-") else f"({'-' + text})"
-    return operand[1:] if operand.startswith("-") else f"-{operand}"
 
 
 def _absorbed(lines: list[str]) -> dict[str, str]:
@@ -79,19 +65,19 @@ def _absorbed(lines: list[str]) -> dict[str, str]:
     defs: dict[str, str] = {}
     uses: dict[str, int] = {}
     for ln in lines:
-        m = _LET.match(ln)
-        for r in _REF.findall(m.group(2) if m else ln.split(" = ", 1)[1]):
+        m = LET.match(ln)
+        for r in REF.findall(m.group(2) if m else ln.split(" = ", 1)[1]):
             uses[r] = uses.get(r, 0) + 1
         if m:
             defs[m.group(1)] = m.group(2)
     inner: dict[str, str] = {}
     for ln in reversed(lines):  # a statement's readers come after it
-        m = _LET.match(ln)
-        if not m or not (_SUM.match(m.group(2)) or (_NEG.match(m.group(2)) and m.group(1) in inner)):
+        m = LET.match(ln)
+        if not m or not (SUM.match(m.group(2)) or (_NEG.match(m.group(2)) and m.group(1) in inner)):
             continue
-        for r in _REF.findall(m.group(2)):
+        for r in REF.findall(m.group(2)):
             e = defs.get(r, "")
-            if uses[r] == 1 and (_SUM.match(e) or _NEG.match(e) or _PRODUCT.match(e)):
+            if uses[r] == 1 and (SUM.match(e) or _NEG.match(e) or PRODUCT.match(e)):
                 inner[r] = e
     return inner
 
@@ -102,7 +88,7 @@ def reassociate(lines: list[str]) -> list[str]:
     fused; the tree's value keeps its name, new inner values get fresh ones."""
     inner = _absorbed(lines)
     ready: dict[str, int] = {}
-    fresh = [1 + max((int(m.group(1)[1:]) for ln in lines if (m := _LET.match(ln))), default=0)]
+    fresh = [1 + max((int(m.group(1)[1:]) for ln in lines if (m := LET.match(ln))), default=0)]
     out: list[str] = []
 
     def when(v: str) -> int:
@@ -110,12 +96,12 @@ def reassociate(lines: list[str]) -> list[str]:
 
     def terms(v: str, sign: int, acc: list[tuple[int, str, tuple[str, str] | None]]) -> None:
         e = inner.get(v)
-        if e and (s := _SUM.match(e)):
+        if e and (s := SUM.match(e)):
             terms(s.group(1), sign, acc)
             terms(s.group(3), sign if s.group(2) == "+" else -sign, acc)
         elif e and (n := _NEG.match(e)):
             terms(n.group(1), -sign, acc)
-        elif e and (p := _PRODUCT.match(e)):
+        elif e and (p := PRODUCT.match(e)):
             acc.append((sign, "", (p.group(1), p.group(2))))
         else:
             acc.append((sign, v, None))
@@ -129,7 +115,7 @@ def reassociate(lines: list[str]) -> list[str]:
         return name
 
     def rebuild(name: str, e: str) -> None:
-        s = _SUM.match(e)
+        s = SUM.match(e)
         flat: list[tuple[int, str, tuple[str, str] | None]] = []
         terms(s.group(1), 1, flat)
         terms(s.group(3), 1 if s.group(2) == "+" else -1, flat)
@@ -165,12 +151,12 @@ def reassociate(lines: list[str]) -> list[str]:
             order += 1
 
     for ln in lines:
-        m = _LET.match(ln)
+        m = LET.match(ln)
         if not m:
             out.append(ln)
         elif m.group(1) in inner:
             continue
-        elif _SUM.match(m.group(2)):
+        elif SUM.match(m.group(2)):
             rebuild(*m.groups())
         else:
             out.append(ln)

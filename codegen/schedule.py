@@ -12,14 +12,11 @@ order changes: every statement, and so every value, is the same.
 
 from __future__ import annotations
 
-import re
+from .fuse import LET, REF
 
 # Vector registers of x86-64 with AVX2 (xmm0–xmm15): a kernel whose values all fit keeps
 # CasADi's order (nothing to spill, nothing to gain).
 REGISTERS = 16
-
-_LET = re.compile(r"^let (x\d+) = (.*);$")
-_REF = re.compile(r"\bx\d+\b")
 
 
 def schedule(lines: list[str]) -> list[str]:
@@ -59,9 +56,9 @@ def graph(lines: list[str]) -> tuple[list[list[int]], list[list[int]]]:
     defines: dict[str, int] = {}
     deps: list[list[int]] = []
     for i, ln in enumerate(lines):
-        m = _LET.match(ln)
+        m = LET.match(ln)
         rhs = m.group(2) if m else ln.split(" = ", 1)[1]
-        deps.append(sorted({defines[r] for r in _REF.findall(rhs) if r in defines}))
+        deps.append(sorted({defines[r] for r in REF.findall(rhs) if r in defines}))
         if m:
             defines[m.group(1)] = i
     users: list[list[int]] = [[] for _ in lines]

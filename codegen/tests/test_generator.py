@@ -251,7 +251,8 @@ def test_schedule_keeps_every_statement_and_value_and_lowers_register_pressure()
     import re
 
     from codegen.emit_rust import emit
-    from codegen.schedule import _LET, _REF, REGISTERS, graph, max_live
+    from codegen.fuse import LET, REF
+    from codegen.schedule import REGISTERS, graph, max_live
 
     def bodies(arm_name, kernel):
         arm = load(ROOT / "arms" / f"{arm_name}.toml")
@@ -269,8 +270,8 @@ def test_schedule_keeps_every_statement_and_value_and_lowers_register_pressure()
     assert sorted(ordered) == sorted(casadi) and ordered != casadi
     seen: set[str] = set()
     for ln in ordered:
-        m = _LET.match(ln)
-        assert set(_REF.findall(m.group(2) if m else ln.split(" = ", 1)[1])) <= seen, ln
+        m = LET.match(ln)
+        assert set(REF.findall(m.group(2) if m else ln.split(" = ", 1)[1])) <= seen, ln
         if m:
             seen.add(m.group(1))
     assert live(ordered) < live(casadi), (live(ordered), live(casadi))
