@@ -50,7 +50,7 @@ NEW_EFFECTS = ["ripple", "asym_coulomb", "run_offset", "drift"]
 MODELLED_BY: dict[str, tuple[list[str], list[str]]] = {
     "ripple": (["ripple"], []),
     "asym_coulomb": (["coulomb", "offset"], []),
-    "run_offset": ([], ["offset"]),
+    "run_offset": (["run_offset"], ["offset"]),
     "drift": (["drift"], ["offset"]),
 }
 GENERATED = ["planar2", "puma560", "panda", "scara"]

@@ -142,6 +142,9 @@ impl Table {
 pub struct Log {
     /// Where it was read from (for error messages and reports).
     pub source: String,
+    /// The recording its rows come from (its source; a [`Log::slice`] keeps its file's): one
+    /// run, for effects that differ from run to run (`run_offset`).
+    run: Arc<str>,
     pub layout: RowLayout,
     /// This log's rows of the table: `lo..hi`.
     lo: usize,
@@ -159,6 +162,7 @@ impl From<Trajectory> for Log {
             rows.extend_from_slice(&row);
         }
         Log {
+            run: t.source.as_str().into(),
             source: t.source,
             layout,
             lo: 0,
@@ -200,6 +204,7 @@ impl Log {
                 kind: Box::new(DataErrorKind::TempFile(e)),
             })?;
         Ok(Log {
+            run: origin.as_str().into(),
             source: origin,
             layout,
             lo: 0,
@@ -213,12 +218,18 @@ impl Log {
     pub fn from_table(source: String, layout: RowLayout, table: Table) -> Log {
         debug_assert_eq!(layout.width(), table.width());
         Log {
+            run: source.as_str().into(),
             source,
             layout,
             lo: 0,
             hi: table.len(),
             table: Arc::new(table),
         }
+    }
+
+    /// The recording this log's rows come from (see the field).
+    pub fn run(&self) -> &str {
+        &self.run
     }
 
     /// Number of samples.
@@ -250,6 +261,7 @@ impl Log {
         let lo = lo.min(hi);
         Log {
             source: format!("{}[rows {}..{}]", self.source, lo + 1, hi),
+            run: self.run.clone(),
             layout: self.layout,
             lo: self.lo + lo,
             hi: self.lo + hi,

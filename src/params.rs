@@ -192,13 +192,15 @@ impl Effects {
         ]
     }
 
-    /// The coefficients of `effect` (one per joint, when given).
+    /// The coefficients of `effect` (one per joint, when given). A per-run offset has no array
+    /// of its own: a model predicts a new run with the mean of the training runs' offsets, which
+    /// is part of `offset` (see [`crate::effects::Run::Unseen`]).
     pub fn coefficients_mut(&mut self, effect: Effect) -> &mut Option<Vec<f64>> {
         match effect {
             Effect::Viscous => &mut self.viscous,
             Effect::Coulomb => &mut self.coulomb,
             Effect::Stribeck => &mut self.stribeck,
-            Effect::Offset => &mut self.offset,
+            Effect::Offset | Effect::RunOffset => &mut self.offset,
             Effect::Armature => &mut self.armature,
             Effect::Spring => &mut self.spring,
             Effect::Drift => &mut self.drift,

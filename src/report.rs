@@ -8,7 +8,8 @@
 //! `report.json` keys: `arm`, `dof`, `base_parameters_from`, `data` (`train`/`validate` files with
 //! sampling and the derivative estimator used), `theta` (base parameters: `name`, `expression`,
 //! `value`, `std`, `rel_std_percent`), `effects` (coefficients of the augmented model, same
-//! fields plus `joint`, `effect`, `unit`), `effects_found` (`joint`, `effect`, `evidence`),
+//! fields plus `joint`, `effect`, `run` (a per-run term's training run, from 1), `unit`),
+//! `effects_found` (`joint`, `effect`, `run`, `evidence`),
 //! `not_identifiable`, `error` (`before`/`after` × `train`/`validation`, each `per_joint` and
 //! `overall` relative RMS `‖τ̂−τ‖/‖τ‖` against the measured torque), `steps` (rigid → + effect →
 //! …), `selection`, `condition_number`, `cutoff_scan`, `guard` (per joint: the selected model
@@ -30,6 +31,7 @@ use rayon::prelude::*;
 use serde_json::{json, Value};
 
 use crate::dh::DhTable;
+use crate::effects::Term;
 use crate::identify::{Errors, ModelResult, Outcome, Predictions, KEEP_RATE_PER_CUTOFF};
 use crate::io::{atomic_write, WriteError};
 
@@ -147,14 +149,19 @@ pub(crate) fn model_errors_json(r: &ModelResult) -> Value {
 }
 
 /// The `report.json` document.
+/// A per-run term's training run, counted from 1 as the files were given (`null` otherwise).
+fn run_number(t: &Term) -> Option<usize> {
+    t.effect.is_per_run().then_some(t.run + 1)
+}
+
 pub fn json_report(o: &Outcome, command: &str) -> Value {
     let eff: Vec<Value> = o
         .effects
         .iter()
         .map(|(t, e)| {
             json!({
-                "joint": t.joint + 1, "effect": t.effect.name(), "name": e.name, "value": e.value,
-                "std": e.std, "rel_std_percent": e.rel_std_percent, "unit": e.unit,
+                "joint": t.joint + 1, "effect": t.effect.name(), "run": run_number(t), "name": e.name,
+                "value": e.value, "std": e.std, "rel_std_percent": e.rel_std_percent, "unit": e.unit,
             })
         })
         .collect();
@@ -165,6 +172,7 @@ pub fn json_report(o: &Outcome, command: &str) -> Value {
         .map(|s| {
             json!({
                 "joint": s.added.joint + 1, "effect": s.added.effect.name(),
+                "run": run_number(&s.added),
                 "evidence": {
                     "heldout_gain": s.evidence.heldout_gain,
                     "torque_share": s.evidence.torque_share,
@@ -310,6 +318,19 @@ pub fn markdown(o: &Outcome, command: &str, plots: &[String]) -> String {
             found.join(", ")
         }
     );
+    if o.effects.iter().any(|(t, _)| t.effect.is_per_run()) {
+        let runs: Vec<String> = o
+            .runs
+            .iter()
+            .enumerate()
+            .map(|(i, r)| format!("{} `{r}`", i + 1))
+            .collect();
+        let _ = writeln!(
+            m,
+            "`run_offsetJ@R` is training run R's offset on joint J over run 1's (`offsetJ`); the runs: {}. A run the model was not fitted on is predicted with the mean of the runs' offsets (`identified.params.toml` holds that mean in `offset`).\n",
+            runs.join(", ")
+        );
+    }
 
     if !o.warnings.is_empty() {
         let _ = writeln!(m, "## Warnings: what these data cannot determine\n");

@@ -108,7 +108,7 @@ fn parse_effects(spec: &str) -> Result<Vec<Effect>, InputError> {
     let mut out = Vec::new();
     for name in s.split(',') {
         match Effect::parse(name) {
-            Some(e) if !e.needs_load() => out.push(e),
+            Some(e) if !e.needs_load() && !e.is_per_run() => out.push(e),
             _ => {
                 return Err(InputError(format!(
                     "--effects: `{}` is not one of viscous, coulomb, stribeck, offset, armature, spring (or `none`)",

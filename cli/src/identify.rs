@@ -31,7 +31,8 @@ pub struct Args {
     /// Validation data (same format), judged with the fitted models.
     #[arg(long)]
     pub validate: Option<PathBuf>,
-    /// `auto` (search), `none` (rigid body only) or a list such as `viscous,coulomb:2`.
+    /// `auto` (search), `none` (rigid body only) or a list such as `viscous,coulomb:2`
+    /// (`run_offset:2@3`: the third training file's torque offset on joint 2 over the first's).
     #[arg(long, default_value = "auto")]
     pub effects: String,
     /// Output directory.

@@ -4,7 +4,7 @@
 
 use serde::Serialize;
 
-use super::Effect;
+use super::{Effect, Term};
 
 /// Velocity scales of one joint's friction columns (fixed from the training data, reused for
 /// validation so the model is the same function everywhere).
@@ -74,6 +74,26 @@ impl Scales {
     }
 }
 
+/// Which run a state belongs to, as the per-run columns ([`Effect::PER_RUN`]) read it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Run {
+    /// Training run `index` (0-based, in the order of the training files).
+    Training(usize),
+    /// A run the model was not fitted on, with the number of training runs: its per-run
+    /// columns are `1 / runs` each (the mean of the training runs' effects).
+    Unseen { runs: usize },
+}
+
+impl Run {
+    /// Training run `m`'s column of a per-run effect at a state of this run.
+    pub fn indicator(self, m: usize) -> f64 {
+        match self {
+            Run::Training(r) => f64::from(u8::from(r == m)),
+            Run::Unseen { runs } => 1.0 / runs.max(1) as f64,
+        }
+    }
+}
+
 /// One joint's state as its effect columns read it. The (smoothed) velocity sign is computed on
 /// first use and shared by every column of the state (Coulomb, Stribeck, load-dependent).
 #[derive(Debug, Clone)]
@@ -83,6 +103,9 @@ pub struct JointState {
     pub ddq: f64,
     /// Time since the start of the run (s), read by `drift` only; 0 unless set ([`JointState::at`]).
     pub t: f64,
+    /// The run, read by the per-run columns only; one unseen run of one unless set
+    /// ([`JointState::in_run`]).
+    pub run: Run,
     scales: Scales,
     sign: std::cell::Cell<Option<f64>>,
 }
@@ -94,6 +117,7 @@ impl JointState {
             dq,
             ddq,
             t: 0.0,
+            run: Run::Unseen { runs: 1 },
             scales: *scales,
             sign: std::cell::Cell::new(None),
         }
@@ -102,6 +126,12 @@ impl JointState {
     /// The state at time `t` since the start of its run (s).
     pub fn at(mut self, t: f64) -> Self {
         self.t = t;
+        self
+    }
+
+    /// The state in run `run`.
+    pub fn in_run(mut self, run: Run) -> Self {
+        self.run = run;
         self
     }
 
@@ -127,9 +157,18 @@ impl Effect {
         self.column_at(&JointState::new(q, dq, ddq, s), load)
     }
 
-    /// [`Effect::column`] at a [`JointState`] that several columns share.
+    /// [`Effect::column`] at a [`JointState`] that several columns share (a per-run effect's
+    /// column is [`Term::column_at`]'s: this is run 0's).
     pub fn column_at(self, st: &JointState, load: f64) -> f64 {
-        match self {
+        Term::new(self, 0).column_at(st, load)
+    }
+}
+
+impl Term {
+    /// The term's regressor column at joint state `st` ([`Effect::column_at`]; a per-run
+    /// effect's is its run's indicator, [`Run::indicator`]).
+    pub fn column_at(&self, st: &JointState, load: f64) -> f64 {
+        match self.effect {
             Effect::Viscous => st.dq,
             Effect::Coulomb => st.sign(),
             Effect::Stribeck => st.sign() * (-(st.dq / st.scales.stribeck_v).powi(2)).exp(),
@@ -139,6 +178,7 @@ impl Effect {
             Effect::Drift => st.t,
             Effect::RippleSin => (st.scales.ripple_k * st.q).sin(),
             Effect::RippleCos => (st.scales.ripple_k * st.q).cos(),
+            Effect::RunOffset => st.run.indicator(self.run),
             Effect::LoadCoulomb => st.sign() * load.abs(),
         }
     }

@@ -39,7 +39,7 @@ pub fn structural_merges(
                 let [q, dq, ddq] = &states[s];
                 // Each random state at its own time, so that `drift` is tested like the rest.
                 let st = JointState::new(q[i], dq[i], ddq[i], &unit).at(s as f64);
-                t.effect.column_at(&st, 1.0)
+                t.column_at(&st, 1.0)
             } else {
                 0.0
             }

@@ -11,6 +11,7 @@
 //! | `spring` | `qⱼ` (linear spring; its rest angle appears as an offset) | N·m/rad |
 //! | `drift` | `t`, the time since the start of the run (slow thermal drift: a motor's and gear's friction and a torque sensor's zero change as they warm up, over minutes — nearly linear over one run) | N·m/s |
 //! | `ripple_sin`, `ripple_cos` | `sin(kⱼ·qⱼ)`, `cos(kⱼ·qⱼ)`, `kⱼ` the joint's ripple wavenumber (rad⁻¹), found from the residual (position-dependent ripple: cogging, gear and sensor ripple; the pair is any phase) | N·m |
+//! | `run_offset` | `1` in training run m, `0` in the other training runs, `1/R` in any other run (R training runs): one column per training run after the first (whose offset is `offset`'s), so an unseen run gets the mean of the runs' offsets (a torque sensor or current offset re-zeroed between runs) | N·m |
 //! | `loadcoulomb` | `tanh(q̇ⱼ / vⱼ) · |τ̂ⱼ|`, τ̂ⱼ the rigid-body torque of joint j (load-dependent friction: a gear's friction grows with the torque it transmits) | N·m per N·m |
 //!
 //! `loadcoulomb` is bilinear (its column holds the rigid-body parameters), so it is fitted in two
@@ -41,7 +42,7 @@ mod merges;
 #[cfg(test)]
 mod tests;
 
-pub use column::{sign, JointState, Scales};
+pub use column::{sign, JointState, Run, Scales};
 pub use load::{load, unload};
 pub use merges::structural_merges;
 
@@ -58,6 +59,7 @@ pub enum Effect {
     Drift,
     RippleSin,
     RippleCos,
+    RunOffset,
     #[serde(rename = "loadcoulomb")]
     LoadCoulomb,
 }
@@ -83,6 +85,15 @@ impl Effect {
     /// after [`Effect::ALL`], before [`Effect::LOADED`].
     pub const RIPPLE: [Effect; 2] = [Effect::RippleSin, Effect::RippleCos];
 
+    /// A per-run offset: one column per training run after the first ([`Term::run`]), searched
+    /// with [`Effect::ALL`] when there are two training runs or more.
+    pub const PER_RUN: [Effect; 1] = [Effect::RunOffset];
+
+    /// Whether the effect has a column per training run (see [`Effect::PER_RUN`]).
+    pub fn is_per_run(self) -> bool {
+        Effect::PER_RUN.contains(&self)
+    }
+
     /// Whether the column needs the joint's ripple wavenumber (see [`Effect::RIPPLE`]).
     pub fn is_ripple(self) -> bool {
         Effect::RIPPLE.contains(&self)
@@ -98,6 +109,7 @@ impl Effect {
         Effect::ALL
             .into_iter()
             .chain(Effect::RIPPLE)
+            .chain(Effect::PER_RUN)
             .chain(Effect::LOADED)
     }
 
@@ -112,6 +124,7 @@ impl Effect {
             Effect::Drift => "drift",
             Effect::RippleSin => "ripple_sin",
             Effect::RippleCos => "ripple_cos",
+            Effect::RunOffset => "run_offset",
             Effect::LoadCoulomb => "loadcoulomb",
         }
     }
@@ -129,7 +142,8 @@ impl Effect {
             | Effect::Stribeck
             | Effect::Offset
             | Effect::RippleSin
-            | Effect::RippleCos => "N·m",
+            | Effect::RippleCos
+            | Effect::RunOffset => "N·m",
             Effect::Armature => "kg·m²",
             Effect::Spring => "N·m/rad",
             Effect::Drift => "N·m/s",
@@ -143,17 +157,40 @@ impl Effect {
 pub struct Term {
     pub effect: Effect,
     pub joint: usize,
+    /// For a per-run effect ([`Effect::PER_RUN`]): the training run (0-based, in the order the
+    /// files were given) whose column this is, from 1 (run 0's is the effect without runs); 0
+    /// in a declared list means every run. 0 for every other effect.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub run: usize,
+}
+
+fn is_zero(r: &usize) -> bool {
+    *r == 0
 }
 
 impl Term {
-    /// `coulomb2` (joints count from 1 for people).
+    /// `effect` on `joint` (not per run).
+    pub fn new(effect: Effect, joint: usize) -> Term {
+        Term {
+            effect,
+            joint,
+            run: 0,
+        }
+    }
+
+    /// `coulomb2` (joints count from 1 for people); `run_offset2@3` for training run 3's
+    /// offset on joint 2.
     pub fn label(&self) -> String {
-        format!("{}{}", self.effect.name(), self.joint + 1)
+        match self.run {
+            0 => format!("{}{}", self.effect.name(), self.joint + 1),
+            r => format!("{}{}@{}", self.effect.name(), self.joint + 1, r + 1),
+        }
     }
 }
 
 /// Parses `--effects`: `auto`, `none`, or a comma list of `effect` (all joints) and
-/// `effect:J` (joint J, from 1).
+/// `effect:J` (joint J, from 1); a per-run effect also `effect:J@R` (training run R's column only,
+/// R from 2; without `@R`, every run's).
 pub fn parse_list(spec: &str, dof: usize) -> Result<EffectsSpec, String> {
     let s = spec.trim();
     match s {
@@ -182,17 +219,26 @@ pub fn parse_list(spec: &str, dof: usize) -> Result<EffectsSpec, String> {
         };
         for effect in effects {
             match joint {
-                None => terms.extend((0..dof).map(|joint| Term { effect, joint })),
+                None => terms.extend((0..dof).map(|joint| Term::new(effect, joint))),
                 Some(j) => {
+                    // `run_offset:J@R`: training run R's column only.
+                    let (j, run) = match j.split_once('@') {
+                        Some((j, r)) => (j, Some(r)),
+                        None => (j, None),
+                    };
                     let j: usize = j.trim().parse().map_err(|_| {
                         format!("--effects: `{item}`: joint must be a number 1..{dof}")
                     })?;
                     if j == 0 || j > dof {
                         return Err(format!("--effects: `{item}`: joint must be 1..{dof}"));
                     }
+                    let run = match run {
+                        None => 0,
+                        Some(r) => parse_run(item, effect, r)?,
+                    };
                     terms.push(Term {
-                        effect,
-                        joint: j - 1,
+                        run,
+                        ..Term::new(effect, j - 1)
                     });
                 }
             }
@@ -201,6 +247,25 @@ pub fn parse_list(spec: &str, dof: usize) -> Result<EffectsSpec, String> {
     terms.sort();
     terms.dedup();
     Ok(EffectsSpec::Fixed(terms))
+}
+
+/// The `R` of `effect:J@R` as a 0-based run index (≥ 1: run 1's offset is the effect without
+/// runs).
+fn parse_run(item: &str, effect: Effect, r: &str) -> Result<usize, String> {
+    if !effect.is_per_run() {
+        return Err(format!(
+            "--effects: `{item}`: `@R` (a training run) is for per-run effects only (run_offset)"
+        ));
+    }
+    match r.trim().parse::<usize>() {
+        Ok(r) if r >= 2 => Ok(r - 1),
+        Ok(1) => Err(format!(
+            "--effects: `{item}`: run 1's offset is `offset` (per-run offsets are runs 2.. over run 1's)"
+        )),
+        _ => Err(format!(
+            "--effects: `{item}`: the run must be a number from 2 (training files in the order given)"
+        )),
+    }
 }
 
 /// What `--effects` asked for.

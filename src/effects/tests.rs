@@ -8,18 +8,9 @@ fn effects_list_parses_all_joint_and_single_joint_forms() {
     assert_eq!(
         spec,
         EffectsSpec::Fixed(vec![
-            Term {
-                effect: Effect::Viscous,
-                joint: 0
-            },
-            Term {
-                effect: Effect::Viscous,
-                joint: 1
-            },
-            Term {
-                effect: Effect::Coulomb,
-                joint: 1
-            },
+            Term::new(Effect::Viscous, 0),
+            Term::new(Effect::Viscous, 1),
+            Term::new(Effect::Coulomb, 1),
         ])
     );
     assert_eq!(parse_list("auto", 3).unwrap(), EffectsSpec::Auto);
@@ -68,4 +59,46 @@ fn drift_column_is_the_time_since_the_run_started() {
     let st = JointState::new(0.3, 1.0, 2.0, &s).at(12.5);
     assert_eq!(Effect::Drift.column_at(&st, 0.0), 12.5);
     assert_eq!(Effect::parse("drift"), Some(Effect::Drift));
+}
+
+/// A per-run offset's column is its run's indicator in training data and `1/R` in a run not
+/// trained on, so the model predicts a new run with the mean of the runs' offsets.
+#[test]
+fn per_run_offset_columns_are_run_indicators_and_the_mean_elsewhere() {
+    let s = Scales::from_rms_velocity(1.0);
+    let term = |run| Term {
+        run,
+        ..Term::new(Effect::RunOffset, 1)
+    };
+    let at = |run: Run| JointState::new(0.3, 1.0, 2.0, &s).in_run(run);
+    assert_eq!(term(2).column_at(&at(Run::Training(2)), 0.0), 1.0);
+    assert_eq!(term(2).column_at(&at(Run::Training(1)), 0.0), 0.0);
+    assert_eq!(term(2).column_at(&at(Run::Training(0)), 0.0), 0.0);
+    assert_eq!(term(2).column_at(&at(Run::Unseen { runs: 4 }), 0.0), 0.25);
+    assert_eq!(term(1).label(), "run_offset2@2");
+}
+
+/// `run_offset:J@R` names training run R's column (R from 2); `@R` on another effect, or run 1
+/// (whose offset is `offset`), is an error that says so.
+#[test]
+fn effects_lists_name_a_runs_offset_with_at() {
+    let EffectsSpec::Fixed(t) = parse_list("run_offset:2@3, run_offset:1", 2).unwrap() else {
+        panic!("not a fixed list");
+    };
+    assert_eq!(
+        t,
+        [
+            Term::new(Effect::RunOffset, 0),
+            Term {
+                run: 2,
+                ..Term::new(Effect::RunOffset, 1)
+            }
+        ]
+    );
+    let err = parse_list("run_offset:2@1", 2).unwrap_err();
+    assert!(err.contains("run 1's offset is `offset`"), "{err}");
+    let err = parse_list("viscous:2@2", 2).unwrap_err();
+    assert!(err.contains("per-run effects only"), "{err}");
+    let err = parse_list("run_offset:2@x", 2).unwrap_err();
+    assert!(err.contains("a number from 2"), "{err}");
 }

@@ -57,7 +57,7 @@ impl Observation {
         let nb = base.nb();
         let all: Vec<Term> = effects
             .iter()
-            .flat_map(|&effect| (0..dof).map(move |joint| Term { effect, joint }))
+            .flat_map(|&effect| (0..dof).map(move |joint| Term::new(effect, joint)))
             .collect();
         let states = random_states(&table, 60, 0x6578_6369);
         let mut s = base.scratch();

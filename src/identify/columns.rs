@@ -34,17 +34,20 @@ pub(super) fn make_layout(
                 .with_coulomb_fraction(cfg.coulomb_width.unwrap_or(Scales::COULOMB_FRACTION))
         })
         .collect();
+    let mut runs: Vec<String> = Vec::new();
+    for p in train {
+        if !runs.iter().any(|r| r == p.log.run()) {
+            runs.push(p.log.run().to_string());
+        }
+    }
     let (declared, searched): (Vec<Term>, Vec<Term>) = match &cfg.effects {
         EffectsSpec::Auto => (
             Vec::new(),
             Effect::ALL
                 .iter()
-                .flat_map(|&e| {
-                    (0..n).map(move |j| Term {
-                        effect: e,
-                        joint: j,
-                    })
-                })
+                .chain(&Effect::PER_RUN)
+                .flat_map(|&e| (0..n).map(move |j| Term::new(e, j)))
+                .flat_map(|t| per_run(t, runs.len()))
                 .collect(),
         ),
         // Ripple and load-dependent terms come in later stages (see `ripple`, `load_stage`).
@@ -52,6 +55,7 @@ pub(super) fn make_layout(
             t.iter()
                 .copied()
                 .filter(|t| !t.effect.needs_load() && !t.effect.is_ripple())
+                .flat_map(|t| per_run(t, runs.len()))
                 .collect(),
             Vec::new(),
         ),
@@ -62,7 +66,13 @@ pub(super) fn make_layout(
     let merged: Vec<(Term, Vec<String>)> = match &states {
         Some(states) => {
             let mut s = base.scratch();
-            let all: Vec<Term> = declared.iter().chain(&searched).copied().collect();
+            // A per-run column is no function of the state: never merged.
+            let all: Vec<Term> = declared
+                .iter()
+                .chain(&searched)
+                .filter(|t| !t.effect.is_per_run())
+                .copied()
+                .collect();
             effects::structural_merges(
                 &all,
                 base.nb(),
@@ -94,8 +104,19 @@ pub(super) fn make_layout(
         base_active,
         fixed: Vec::new(),
         load: Vec::new(),
+        runs,
     };
     (layout, declared, searched, merged)
+}
+
+/// `t` itself, or for a per-run effect one term per training run after the first (`t.run` 0:
+/// every run; none with one run — the first run's is the effect without runs, `offset`).
+fn per_run(t: Term, runs: usize) -> Vec<Term> {
+    match (t.effect.is_per_run(), t.run) {
+        (false, _) => vec![t],
+        (true, 0) => (1..runs).map(|run| Term { run, ..t }).collect(),
+        (true, r) => (r < runs).then_some(t).into_iter().collect(),
+    }
 }
 
 /// Per joint, the base columns that are non-zero at some of the random `states` (a

@@ -175,18 +175,9 @@ mod tests {
         let arm = crate::arms::resolve("planar2").unwrap();
         let cfg = Config {
             effects: EffectsSpec::Fixed(vec![
-                Term {
-                    effect: Effect::Coulomb,
-                    joint: 0,
-                },
-                Term {
-                    effect: Effect::Coulomb,
-                    joint: 1,
-                },
-                Term {
-                    effect: Effect::Viscous,
-                    joint: 1,
-                },
+                Term::new(Effect::Coulomb, 0),
+                Term::new(Effect::Coulomb, 1),
+                Term::new(Effect::Viscous, 1),
             ]),
             ..Config::default()
         };

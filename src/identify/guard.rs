@@ -138,7 +138,7 @@ pub struct Guard {
 /// columns and each other, and those it cannot.
 pub fn plain_terms(p: &Problem) -> (Vec<Term>, Vec<Term>) {
     let all: Vec<Term> = (0..p.layout.dof)
-        .flat_map(|joint| PLAIN_EFFECTS.map(|effect| Term { effect, joint }))
+        .flat_map(|joint| PLAIN_EFFECTS.map(|effect| Term::new(effect, joint)))
         .filter(|t| p.layout.col(t).is_some())
         .collect();
     let kept = p.independent(&p.subset(&all));
@@ -147,7 +147,10 @@ pub fn plain_terms(p: &Problem) -> (Vec<Term>, Vec<Term>) {
 }
 
 /// Per joint held-out relative RMS error of the model `terms` against the measured torque
-/// (fits without each file when `by_run`, else without each block).
+/// (fits without each file when `by_run`, else without each block). By run, a per-run term
+/// counts as an `offset` on its joint: the fit without a run has no offset of that run (its
+/// column would be all zero there), and predicts it, as any new run, with the mean offset of the
+/// others — an offset.
 pub fn heldout_per_joint(
     base: &BaseModel,
     p: &Problem,
@@ -155,7 +158,11 @@ pub fn heldout_per_joint(
     terms: &[Term],
     by_run: bool,
 ) -> Result<Vec<f64>, RankError> {
-    let subset = p.subset(terms);
+    let terms = match by_run {
+        true => per_run_as_offsets(p, terms),
+        false => terms.to_vec(),
+    };
+    let subset = p.subset(&terms);
     let w = p.weights(&subset)?;
     let loo = if by_run {
         p.lofo_fits(&subset, &w)?
@@ -180,6 +187,31 @@ pub fn heldout_per_joint(
         .zip(&s.tss)
         .map(|(e, t)| if *t > 0.0 { (e / t).sqrt() } else { f64::NAN })
         .collect())
+}
+
+/// `terms` with each joint's per-run terms replaced by an `offset` on it — unless that offset
+/// is a combination of the other columns in this data (a vertical prismatic joint's gravity
+/// column is mass times a constant plus mass times q̈: with rotor inertia in the model, an offset
+/// would make it rank-deficient).
+fn per_run_as_offsets(p: &Problem, terms: &[Term]) -> Vec<Term> {
+    let mut out: Vec<Term> = terms
+        .iter()
+        .filter(|t| !t.effect.is_per_run())
+        .copied()
+        .collect();
+    for t in terms.iter().filter(|t| t.effect.is_per_run()) {
+        let offset = Term::new(Effect::Offset, t.joint);
+        if out.contains(&offset) {
+            continue;
+        }
+        let mut with = out.clone();
+        with.push(offset);
+        let subset = p.subset(&with);
+        if p.independent(&subset).len() == subset.len() {
+            out = with;
+        }
+    }
+    out
 }
 
 /// Adds to `weak` the joints whose torque even the plain fit (held-out errors `e_plain`)
@@ -652,10 +684,7 @@ mod tests {
         assert!(j2.selected <= j2.plain, "{j2:?}");
         assert_eq!(j2.winner, "selected");
         for e in [Effect::Viscous, Effect::Coulomb] {
-            let t = Term {
-                effect: e,
-                joint: 1,
-            };
+            let t = Term::new(e, 1);
             assert!(
                 out.selection.guarded.contains(&t),
                 "{:?}",
@@ -678,12 +707,7 @@ mod tests {
         let coef = |e: Effect| {
             out.effects
                 .iter()
-                .find(|(t, _)| {
-                    *t == Term {
-                        effect: e,
-                        joint: 1,
-                    }
-                })
+                .find(|(t, _)| *t == Term::new(e, 1))
                 .map(|(_, est)| est.value)
                 .unwrap()
         };

@@ -2,7 +2,7 @@
 //! its rows), then effect terms. Chosen for the training data by [`super::columns`].
 
 use super::ls::Accumulator;
-use crate::effects::{Scales, Term};
+use crate::effects::{Run, Scales, Term};
 
 /// Which columns the regression has: base parameters, then effect terms.
 #[derive(Debug, Clone)]
@@ -22,6 +22,9 @@ pub struct Layout {
     /// Coefficients (one per column, zero on the [`Effect::LOADED`](crate::effects::Effect::LOADED) ones) of the first-stage
     /// model whose predicted torque the load-dependent columns use; empty when there are none.
     pub load: Vec<f64>,
+    /// The training runs ([`crate::log::Log::run`]), in order, each once: a per-run term's
+    /// [`Term::run`] indexes them.
+    pub runs: Vec<String>,
 }
 
 impl Layout {
@@ -39,6 +42,17 @@ impl Layout {
             && self.scales == other.scales
             && self.base_active == other.base_active
             && self.load == other.load
+            && self.runs == other.runs
+    }
+
+    /// Which run the rows of a log of recording `run` are in.
+    pub fn run_of(&self, run: &str) -> Run {
+        match self.runs.iter().position(|r| r == run) {
+            Some(i) => Run::Training(i),
+            None => Run::Unseen {
+                runs: self.runs.len(),
+            },
+        }
     }
 
     /// Column index of a term.

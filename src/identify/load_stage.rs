@@ -74,7 +74,7 @@ pub(super) fn load_stage(
             Vec::new(),
             Effect::LOADED
                 .iter()
-                .flat_map(|&effect| (0..n).map(move |joint| Term { effect, joint }))
+                .flat_map(|&effect| (0..n).map(move |joint| Term::new(effect, joint)))
                 .collect(),
         ),
         EffectsSpec::Fixed(t) => (

@@ -40,9 +40,11 @@
 //!    interpolated between grid samples): relative RMS per joint `‖τ̂ⱼ−τⱼ‖/‖τⱼ‖` and overall
 //!    `‖τ̂−τ‖/‖τ‖`, for the declared (rigid) and the augmented model, on training and
 //!    validation data, and held out (each time block predicted by the fit without it).
-//! 6. **Effect selection** (`select.rs`, [`select`]) on the problem; position ripple
+//! 6. **Effect selection** (`select.rs`, [`select`]) on the problem (with two training files or
+//!    more, a per-run offset is a column per run: [`crate::effects::Run`]); position ripple
 //!    ([`ripple`]: a wavenumber per joint from the residual's periodogram, then the pair
-//!    searched); load-dependent effects
+//!    searched, and the first stage's candidates again on top of an accepted pair);
+//!    load-dependent effects
 //!    ([`Effect::LOADED`](crate::effects::Effect::LOADED)) in a second stage on top of the first
 //!    stage's model (`load_stage.rs`: their columns hold its torque, so the layout and problem
 //!    are rebuilt); when one is found, the scan is repeated with it in its models
@@ -218,6 +220,7 @@ fn scan_and_run(
     cfg: &Config,
     cache: &mut PrepCache,
 ) -> Result<Outcome, IdentifyError> {
+    check_runs(cfg, train)?;
     let table = arm.dh_table().ok();
     cfg.progress
         .stage("estimating derivatives and the spectral cut-off", 0);
@@ -293,6 +296,36 @@ pub fn run(
     )
 }
 
+/// A declared per-run term needs its run among the training files (`run_offset:J@R`), and any
+/// per-run term two training runs.
+fn check_runs(cfg: &Config, train: &[Log]) -> Result<(), IdentifyError> {
+    let EffectsSpec::Fixed(terms) = &cfg.effects else {
+        return Ok(());
+    };
+    let mut runs: Vec<&str> = train.iter().map(Log::run).collect();
+    runs.sort_unstable();
+    runs.dedup();
+    match terms.iter().find(|t| t.effect.is_per_run()) {
+        Some(t) if runs.len() < 2 => Err(IdentifyError::Effects(format!(
+            "--effects {}: a per-run offset needs two training files or more (one --data given); with one run it is `offset`",
+            t.effect.name()
+        ))),
+        _ => match terms
+            .iter()
+            .find(|t| t.effect.is_per_run() && t.run >= runs.len())
+        {
+            Some(t) => Err(IdentifyError::Effects(format!(
+                "--effects {}:{}@{}: there are {} training runs (the --data files, in order)",
+                t.effect.name(),
+                t.joint + 1,
+                t.run + 1,
+                runs.len()
+            ))),
+            None => Ok(()),
+        },
+    }
+}
+
 fn check_dof(t: &Log, base: &BaseModel) -> Result<(), IdentifyError> {
     if t.dof() != base.dof() {
         return Err(IdentifyError::Dof {
@@ -353,7 +386,7 @@ fn run_prepared_with(
         .collect();
     let first = select::first_stage(problem, train, cfg, declared, &searched)?;
     let skip: Vec<usize> = weak.iter().map(|w| w.joint).collect();
-    let (first, ripple_scans) = ripple::ripple_stage(base, train, cfg, first, &skip)?;
+    let (first, ripple_scans) = ripple::ripple_stage(base, train, cfg, first, (&skip, &searched))?;
     let selected = load_stage(base, train, cfg, first)?;
     let (selected, width_scan) = match cfg.coulomb_width {
         None => coulomb_width::choose_width(base, (train, grids), cfg.blocks, selected, &skip),

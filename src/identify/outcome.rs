@@ -104,6 +104,8 @@ pub struct Outcome {
     pub sigma: Vec<f64>,
     pub blocks: usize,
     pub scales: Vec<Scales>,
+    /// The training runs a per-run term's [`Term::run`] indexes ([`super::Layout::runs`]).
+    pub runs: Vec<String>,
     /// Cut-offs tried by the automatic choice and their held-out errors (empty if fixed).
     pub cutoff_scan: Vec<CutoffTrial>,
     /// How the scan sampled a long training set (`None`: scanned whole, or not scanned).
@@ -243,6 +245,7 @@ pub(super) fn assemble(
         sigma,
         blocks: problem.blocks(),
         scales: layout.scales.clone(),
+        runs: layout.runs.clone(),
         cutoff_scan: Vec::new(),
         scan_sampling: None,
         rescanned_with: Vec::new(),

@@ -238,8 +238,8 @@ fn residuals(
     let total: usize = train.iter().map(|p| p.keep.1 - p.keep.0).sum();
     let stride = total.div_ceil(MAX_SAMPLES).max(1);
     let mut out = vec![(Vec::new(), Vec::new(), Vec::new()); joints.len()];
-    let mut rows = Rows::new(base, layout);
     for (file, p) in train.iter().enumerate() {
+        let mut rows = Rows::new(base, layout, p.log.run());
         for (a, b) in cores(p, p.keep.0, p.keep.1) {
             let first = a.div_ceil(stride) * stride;
             if first >= b {
@@ -274,7 +274,7 @@ pub(super) fn ripple_stage(
     train: &[Prepared],
     cfg: &Config,
     selected: Selected,
-    skip: &[usize],
+    (skip, searched): (&[usize], &[Term]),
 ) -> Result<(Selected, Vec<RippleScan>), IdentifyError> {
     let n = base.dof();
     let fixed: Vec<Term> = match &cfg.effects {
@@ -307,12 +307,7 @@ pub(super) fn ripple_stage(
         EffectsSpec::Auto => scans
             .iter()
             .filter(|s| s.significant)
-            .flat_map(|s| {
-                Effect::RIPPLE.map(|effect| Term {
-                    effect,
-                    joint: s.joint,
-                })
-            })
+            .flat_map(|s| Effect::RIPPLE.map(|effect| Term::new(effect, s.joint)))
             .collect(),
         EffectsSpec::Fixed(_) => Vec::new(),
     };
@@ -340,6 +335,15 @@ pub(super) fn ripple_stage(
             },
             scans,
         ));
+    }
+    if !second.steps.is_empty() {
+        // A ripple hides smaller effects in its residual (a per-run offset on the same joint
+        // most of all): with it in the model, the first stage's candidates are searched again.
+        let again = select(&p2, &second.terms, searched, &cfg.rules)?;
+        second.steps.extend(again.steps);
+        second.collinear.extend(again.collinear);
+        second.terms = again.terms;
+        second.stopped_on = again.stopped_on;
     }
     for s in &mut scans {
         s.accepted = second

@@ -14,7 +14,7 @@ use super::row_table::{
     BasePart, GridBase, GridBaseCache, RowTable, GRID_BASE_BYTES, ROW_TABLE_BYTES,
 };
 use crate::derivative::States;
-use crate::effects::JointState;
+use crate::effects::{JointState, Run};
 use crate::pack::LANES;
 
 /// Fills regression rows for one state into its own buffer, `row[j * ncols + c]`. A joint's row
@@ -40,11 +40,15 @@ pub(super) struct Rows<'a> {
     batch_lanes: usize,
     /// Each joint's state for its effect columns (reused across states: no allocation).
     states: Vec<JointState>,
+    /// The run of the file whose rows these are (read by the per-run columns).
+    run: Run,
 }
 
 impl<'a> Rows<'a> {
-    pub(super) fn new(base: &'a BaseModel, layout: &'a Layout) -> Self {
+    /// Rows of `layout` for a file of recording `run` ([`crate::log::Log::run`]).
+    pub(super) fn new(base: &'a BaseModel, layout: &'a Layout, run: &str) -> Self {
         Rows {
+            run: layout.run_of(run),
             base,
             layout,
             scratch: base.scratch(),
@@ -111,10 +115,10 @@ impl<'a> Rows<'a> {
             // From locals moved into the closure: reading `self.yb` and `nb` through references
             // reloaded them for every element (the writes to `o` could alias them).
             let (yb, scale) = (&self.yb[j * nb..(j + 1) * nb], &scales[j]);
-            let st = JointState::new(q, dq, ddq, scale).at(time);
+            let st = JointState::new(q, dq, ddq, scale).at(time).in_run(self.run);
             o.extend(active[j].iter().map(move |&c| match c.checked_sub(nb) {
                 None => yb[c],
-                Some(i) => terms[i].effect.column_at(&st, 0.0),
+                Some(i) => terms[i].column_at(&st, 0.0),
             }));
         }
     }
@@ -183,17 +187,19 @@ impl<'a> Rows<'a> {
         // Each joint's state, its velocity sign computed once for the columns that need it.
         let states: &mut Vec<JointState> = &mut self.states;
         states.clear();
-        states.extend(
-            (0..q.len())
-                .map(|j| JointState::new(q[j], dq[j], ddq[j], &self.layout.scales[j]).at(time)),
-        );
+        let run = self.run;
+        states.extend((0..q.len()).map(|j| {
+            JointState::new(q[j], dq[j], ddq[j], &self.layout.scales[j])
+                .at(time)
+                .in_run(run)
+        }));
         for (i, t) in terms
             .iter()
             .enumerate()
             .filter(|(_, t)| !t.effect.needs_load())
         {
             let j = t.joint;
-            out[j * nc + nb + i] = t.effect.column_at(&states[j], 0.0);
+            out[j * nc + nb + i] = t.column_at(&states[j], 0.0);
         }
         // Load-dependent columns: the first-stage model's torque from the columns just filled.
         let load = &self.layout.load;
@@ -204,7 +210,7 @@ impl<'a> Rows<'a> {
         {
             let j = t.joint;
             let tau = dot::dot(&out[j * nc..(j + 1) * nc], load);
-            out[j * nc + nb + i] = t.effect.column_at(&states[j], tau);
+            out[j * nc + nb + i] = t.column_at(&states[j], tau);
         }
     }
 }
@@ -232,7 +238,7 @@ impl RowTable {
         // Per chunk: each joint's rows, each joint's torque.
         type Part = (Vec<Vec<f64>>, Vec<Vec<f64>>);
         let part = |(a, b): (usize, usize), given: Option<&BasePart>| -> Part {
-            let mut rows = Rows::new(base, layout);
+            let mut rows = Rows::new(base, layout, p.log.run());
             let mut out: Vec<Vec<f64>> = widths
                 .iter()
                 .map(|w| Vec::with_capacity(w * (b - a)))
@@ -463,16 +469,18 @@ mod tests {
             first.terms
         );
         let mut loaded = first.clone();
-        loaded.terms.push(crate::effects::Term {
-            effect: Effect::LoadCoulomb,
-            joint: 2,
-        });
+        loaded
+            .terms
+            .push(crate::effects::Term::new(Effect::LoadCoulomb, 2));
         loaded.load = (0..loaded.ncols()).map(|c| 0.01 * c as f64).collect();
         let st = p.states(0, 200);
         for layout in [&first, &loaded] {
             let (n, nc) = (layout.dof, layout.ncols());
             let active: Vec<Vec<usize>> = (0..n).map(|j| layout.active(j)).collect();
-            let (mut straight, mut gathered) = (Rows::new(&base, layout), Rows::new(&base, layout));
+            let (mut straight, mut gathered) = (
+                Rows::new(&base, layout, p.log.run()),
+                Rows::new(&base, layout, p.log.run()),
+            );
             for k in [0, 1, 2, 3, 4, 7, 150, 199] {
                 let mut got = vec![Vec::new(); n];
                 straight.append_active(&st, k, &active, &mut got);
@@ -509,6 +517,7 @@ mod tests {
             base_active: vec![(0..nb).collect(); n],
             fixed: Vec::new(),
             load: Vec::new(),
+            runs: Vec::new(),
         };
         let window = |seed: u64| {
             let mut v = seed;
@@ -528,7 +537,7 @@ mod tests {
             }
         };
         let (a, b) = (window(1), window(2));
-        let mut rows = Rows::new(&base, &layout);
+        let mut rows = Rows::new(&base, &layout, "");
         let mut scratch = base.scratch();
         let mut want = vec![0.0; n * nb];
         let order = [0, 1, 2, 3, 4, 9, 8, 7, 5, 5, 6, 2, 0];

@@ -78,7 +78,7 @@ impl Spec {
     }
 
     pub fn with_effect(mut self, effect: Effect, joint: usize, value: f64) -> Self {
-        self.effects.push((Term { effect, joint }, value));
+        self.effects.push((Term::new(effect, joint), value));
         self
     }
 }
@@ -227,7 +227,7 @@ pub fn generate(spec: &Spec) -> Trajectory {
             if !term.effect.needs_load() {
                 let sc = spec.plant_scales.get(j).unwrap_or(&Scales::EXACT);
                 let st = JointState::new(qs[j], dqs[j], ddqs[j], sc).at(tk);
-                ts[j] += v * term.effect.column_at(&st, 0.0);
+                ts[j] += v * term.column_at(&st, 0.0);
             }
         }
         for (term, v) in spec.effects.iter().filter(|(t, _)| t.effect.needs_load()) {

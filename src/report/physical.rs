@@ -8,6 +8,7 @@ use serde_json::{json, Value};
 
 use super::{num, pct};
 use crate::dh::DhTable;
+use crate::effects::Run;
 use crate::identify::Outcome;
 use crate::params::{Effects, InertialParams};
 
@@ -17,8 +18,14 @@ pub fn params(o: &Outcome) -> Option<InertialParams> {
     let n = o.dof;
     let mut e = Effects::default();
     for &(t, v) in &ph.effects {
+        // A new run's per-run offset is the mean of the training runs' ([`Run::Unseen`]).
+        let w = if t.effect.is_per_run() {
+            Run::Unseen { runs: o.runs.len() }.indicator(t.run)
+        } else {
+            1.0
+        };
         e.coefficients_mut(t.effect)
-            .get_or_insert_with(|| vec![0.0; n])[t.joint] = v;
+            .get_or_insert_with(|| vec![0.0; n])[t.joint] += w * v;
     }
     // The model's friction sign is the fitted tanh(q̇/v); the plant must use the same.
     if e.coulomb.is_some() || e.stribeck.is_some() || e.loadcoulomb.is_some() {

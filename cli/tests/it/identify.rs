@@ -382,7 +382,7 @@ fn each_effect_is_detected_on_the_right_joint() {
     for (i, (effect, joint, value)) in cases.into_iter().enumerate() {
         let spec = Spec::new(other_planar(), 40 + i as u64).with_effect(effect, joint, value);
         let (o, _) = run_synth(&spec, &Config::default());
-        let label = Term { effect, joint }.label();
+        let label = Term::new(effect, joint).label();
         assert_eq!(found(&o), std::slice::from_ref(&label), "{label}");
         let (_, e) = o.effects.iter().find(|(t, _)| t.label() == label).unwrap();
         let err = (e.value - value).abs();
@@ -502,7 +502,7 @@ fn load_dependent_friction_is_found_in_the_second_stage() {
     for (joint, mu, seed) in [(1, 0.15, 48), (0, 0.1, 49)] {
         let spec = Spec::new(other_planar(), seed).with_effect(Effect::LoadCoulomb, joint, mu);
         let (o, _) = run_synth(&spec, &Config::default());
-        let term = |effect| Term { effect, joint }.label();
+        let term = |effect| Term::new(effect, joint).label();
         let label = term(Effect::LoadCoulomb);
         let f = found(&o);
         assert!(
@@ -587,6 +587,56 @@ fn puma_with_two_undeclared_effects_finds_exactly_them() {
     assert!(after < 0.5 * before, "validation {before} -> {after}");
 }
 
+/// A per-run offset (a torque sensor re-zeroed between runs): joint 5's offset is 0 in the first
+/// training run and 0.3 N·m in the second. `run_offset5@2`, the second run's offset over the
+/// first's, is found with its value and nothing else; with the same offset in both runs the
+/// offset is found, and no per-run one.
+#[test]
+fn a_per_run_offset_is_found_and_a_shared_one_is_not() {
+    let spec = Spec {
+        duration: 12.0,
+        rate_hz: 200.0,
+        ..Spec::new(arm_table("puma560"), 83)
+    };
+    let arm = ArmSource::Table(spec.table.clone());
+    let run = |seed: u64, offset: f64| {
+        let mut s = spec.clone().with_effect(Effect::Offset, 4, offset);
+        s.seed += seed;
+        Log::from(generate(&s))
+    };
+    let cfg = Config::default();
+    let o = identify::run(
+        &arm,
+        vec![run(0, 0.0), run(1, 0.3)],
+        Some(run(2, 0.1)),
+        &cfg,
+    )
+    .expect("identification");
+    assert_eq!(found(&o), ["run_offset5@2"], "found {:?}", found(&o));
+    assert_coefs(&o, &[("run_offset5@2", 0.3)], 0.1);
+    let shared =
+        identify::run(&arm, vec![run(0, 0.2), run(1, 0.2)], None, &cfg).expect("identification");
+    assert_eq!(found(&shared), ["offset5"], "found {:?}", found(&shared));
+    // Declared: one training run has no per-run offset, and run 3 of two does not exist.
+    for (train, effects, says) in [
+        (vec![run(0, 0.0)], "run_offset:5", "two training files"),
+        (
+            vec![run(0, 0.0), run(1, 0.3)],
+            "run_offset:5@3",
+            "there are 2 training runs",
+        ),
+    ] {
+        let cfg = Config {
+            effects: dynid::effects::parse_list(effects, 6).unwrap(),
+            ..Config::default()
+        };
+        let err = identify::run(&arm, train, None, &cfg)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains(says), "{effects}: {err}");
+    }
+}
+
 /// A log longer than the cut-off scan's sample budget (150 s at 1 kHz): the scan runs on pieces,
 /// the final fit on every sample, and the undeclared effects are still found exactly, with their
 /// values.
@@ -637,14 +687,8 @@ fn fixed_effect_lists_are_fitted_as_given() {
     let spec = Spec::new(other_planar(), 9).with_effect(Effect::Viscous, 0, 0.4);
     let cfg = Config {
         effects: EffectsSpec::Fixed(vec![
-            Term {
-                effect: Effect::Viscous,
-                joint: 0,
-            },
-            Term {
-                effect: Effect::Offset,
-                joint: 1,
-            },
+            Term::new(Effect::Viscous, 0),
+            Term::new(Effect::Offset, 1),
         ]),
         ..Config::default()
     };
