@@ -19,7 +19,9 @@
 //! joint's predicted torque — the final model's training residual binned: `joint`, `variable`,
 //! `unit`, `bins` (`lo`, `hi`, `centre`, `n`, `mean`, `std`, `n_eff`, `ci95_lo`, `ci95_hi`),
 //! `rho`, `n_eff_factor`, `chi2`, `dof`, `p_value`, `note`) and `residual_maps_info` (what was
-//! binned, every how many samples, how the bands and the test are made; [`residual_map`]). The
+//! binned, every how many samples, how the bands and the test are made; [`residual_map`]);
+//! `run_offsets` (per joint with a per-run offset: `joint`, `offsets` per training run, `mean`
+//! — a new run's — and `sd` between runs; [`run_offsets`]). The
 //! maps are a diagnostic of the fitted model, not what the effect search tested (held-out gains).
 
 use std::fmt::Write as _;
@@ -39,6 +41,7 @@ pub mod guard;
 pub mod leave_one_out;
 pub mod physical;
 pub mod residual_map;
+pub mod run_offsets;
 
 /// Why a report could not be written.
 #[derive(Debug, thiserror::Error)]
@@ -223,6 +226,7 @@ pub fn json_report(o: &Outcome, command: &str) -> Value {
         "estimator": "weighted least squares (per-joint 1/sigma), incremental QR, parallel zero-phase filtering of tau and regressor; std by block jackknife; then the physically consistent estimate closest to it in the same weighted metric (`physical`)",
         "physical": physical::json(o),
         "guard": guard::json(o),
+        "run_offsets": run_offsets::json(o),
         "warnings": o.warnings,
         "fixed": o.fixed,
         "undetermined": o.undetermined,
@@ -318,20 +322,6 @@ pub fn markdown(o: &Outcome, command: &str, plots: &[String]) -> String {
             found.join(", ")
         }
     );
-    if o.effects.iter().any(|(t, _)| t.effect.is_per_run()) {
-        let runs: Vec<String> = o
-            .runs
-            .iter()
-            .enumerate()
-            .map(|(i, r)| format!("{} `{r}`", i + 1))
-            .collect();
-        let _ = writeln!(
-            m,
-            "`run_offsetJ@R` is training run R's offset on joint J over run 1's (`offsetJ`); the runs: {}. A run the model was not fitted on is predicted with the mean of the runs' offsets (`identified.params.toml` holds that mean in `offset`).\n",
-            runs.join(", ")
-        );
-    }
-
     if !o.warnings.is_empty() {
         let _ = writeln!(m, "## Warnings: what these data cannot determine\n");
         for w in &o.warnings {
@@ -341,6 +331,7 @@ pub fn markdown(o: &Outcome, command: &str, plots: &[String]) -> String {
     }
     errors_section(&mut m, o);
     guard::section(&mut m, o);
+    run_offsets::section(&mut m, o);
     steps_section(&mut m, o);
     evidence_section(&mut m, o);
     parameters_section(&mut m, o);

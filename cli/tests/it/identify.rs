@@ -614,6 +614,22 @@ fn a_per_run_offset_is_found_and_a_shared_one_is_not() {
     .expect("identification");
     assert_eq!(found(&o), ["run_offset5@2"], "found {:?}", found(&o));
     assert_coefs(&o, &[("run_offset5@2", 0.3)], 0.1);
+    // The report's offsets per run are the truth's; a new run gets their mean, in the params
+    // file's `offset` too.
+    let runs = dynid::report::run_offsets::per_joint(&o);
+    assert_eq!(runs.len(), 1, "{runs:?}");
+    let (got, truth) = (&runs[0], [0.0, 0.3]);
+    assert_eq!(got.joint, 5);
+    for (g, t) in got.offsets.iter().zip(truth) {
+        assert!((g - t).abs() < 0.03, "{runs:?}");
+    }
+    assert!(
+        (got.mean - 0.15).abs() < 0.03 && (got.sd - 0.212).abs() < 0.03,
+        "{runs:?}"
+    );
+    let p = dynid::report::physical::params(&o).expect("a consistent estimate");
+    let offset = p.effects.offset.as_ref().map_or(0.0, |v| v[4]);
+    assert!((offset - 0.15).abs() < 0.03, "params offset5 {offset}");
     let shared =
         identify::run(&arm, vec![run(0, 0.2), run(1, 0.2)], None, &cfg).expect("identification");
     assert_eq!(found(&shared), ["offset5"], "found {:?}", found(&shared));
