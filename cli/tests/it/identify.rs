@@ -569,17 +569,22 @@ fn selection_power_and_false_positives() {
     assert!(spurious.is_empty() && hits >= 9);
 }
 
+/// A synthetic PUMA 560 run of 12 s at 200 Hz.
+fn puma_12s(seed: u64) -> Spec {
+    Spec {
+        duration: 12.0,
+        rate_hz: 200.0,
+        ..Spec::new(arm_table("puma560"), seed)
+    }
+}
+
 /// A 6-DOF arm with two undeclared effects at once (viscous friction on the shoulder, a torque
 /// offset on the wrist): exactly those two are found, with their values.
 #[test]
 fn puma_with_two_undeclared_effects_finds_exactly_them() {
-    let spec = Spec {
-        duration: 12.0,
-        rate_hz: 200.0,
-        ..Spec::new(arm_table("puma560"), 61)
-    }
-    .with_effect(Effect::Viscous, 1, 0.8)
-    .with_effect(Effect::Offset, 4, 0.15);
+    let spec = puma_12s(61)
+        .with_effect(Effect::Viscous, 1, 0.8)
+        .with_effect(Effect::Offset, 4, 0.15);
     let (o, _) = run_synth(&spec, &Config::default());
     assert_eq!(found(&o), ["offset5", "viscous2"], "found {:?}", found(&o));
     assert_coefs(&o, &[("viscous2", 0.8), ("offset5", 0.15)], 0.1);
@@ -593,11 +598,7 @@ fn puma_with_two_undeclared_effects_finds_exactly_them() {
 /// offset is found, and no per-run one.
 #[test]
 fn a_per_run_offset_is_found_and_a_shared_one_is_not() {
-    let spec = Spec {
-        duration: 12.0,
-        rate_hz: 200.0,
-        ..Spec::new(arm_table("puma560"), 83)
-    };
+    let spec = puma_12s(83);
     let arm = ArmSource::Table(spec.table.clone());
     let run = |seed: u64, offset: f64| {
         let mut s = spec.clone().with_effect(Effect::Offset, 4, offset);
