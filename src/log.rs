@@ -232,6 +232,17 @@ impl Log {
         &self.run
     }
 
+    /// The distinct recordings of `logs` ([`Log::run`]), in the order they first appear.
+    pub fn runs<'a>(logs: impl IntoIterator<Item = &'a Log>) -> Vec<&'a str> {
+        let mut out: Vec<&str> = Vec::new();
+        for log in logs {
+            if !out.contains(&log.run()) {
+                out.push(log.run());
+            }
+        }
+        out
+    }
+
     /// Number of samples.
     pub fn len(&self) -> usize {
         self.hi - self.lo

@@ -34,12 +34,10 @@ pub(super) fn make_layout(
                 .with_coulomb_fraction(cfg.coulomb_width.unwrap_or(Scales::COULOMB_FRACTION))
         })
         .collect();
-    let mut runs: Vec<String> = Vec::new();
-    for p in train {
-        if !runs.iter().any(|r| r == p.log.run()) {
-            runs.push(p.log.run().to_string());
-        }
-    }
+    let runs: Vec<String> = crate::log::Log::runs(train.iter().map(|p| &p.log))
+        .into_iter()
+        .map(str::to_string)
+        .collect();
     let (declared, searched): (Vec<Term>, Vec<Term>) = match &cfg.effects {
         EffectsSpec::Auto => (
             Vec::new(),

@@ -199,8 +199,15 @@ fn per_run_as_offsets(p: &Problem, terms: &[Term]) -> Vec<Term> {
         .filter(|t| !t.effect.is_per_run())
         .copied()
         .collect();
+    // Each joint once, in the order its first per-run term comes.
+    let mut joints: Vec<usize> = Vec::new();
     for t in terms.iter().filter(|t| t.effect.is_per_run()) {
-        let offset = Term::new(Effect::Offset, t.joint);
+        if !joints.contains(&t.joint) {
+            joints.push(t.joint);
+        }
+    }
+    for joint in joints {
+        let offset = Term::new(Effect::Offset, joint);
         if out.contains(&offset) {
             continue;
         }

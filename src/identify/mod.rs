@@ -302,27 +302,22 @@ fn check_runs(cfg: &Config, train: &[Log]) -> Result<(), IdentifyError> {
     let EffectsSpec::Fixed(terms) = &cfg.effects else {
         return Ok(());
     };
-    let mut runs: Vec<&str> = train.iter().map(Log::run).collect();
-    runs.sort_unstable();
-    runs.dedup();
-    match terms.iter().find(|t| t.effect.is_per_run()) {
-        Some(t) if runs.len() < 2 => Err(IdentifyError::Effects(format!(
+    let runs = Log::runs(train).len();
+    let per_run = || terms.iter().filter(|t| t.effect.is_per_run());
+    if let Some(t) = per_run().next().filter(|_| runs < 2) {
+        return Err(IdentifyError::Effects(format!(
             "--effects {}: a per-run offset needs two training files or more (one --data given); with one run it is `offset`",
             t.effect.name()
+        )));
+    }
+    match per_run().find(|t| t.run >= runs) {
+        Some(t) => Err(IdentifyError::Effects(format!(
+            "--effects {}:{}@{}: there are {runs} training runs (the --data files, in order)",
+            t.effect.name(),
+            t.joint + 1,
+            t.run + 1,
         ))),
-        _ => match terms
-            .iter()
-            .find(|t| t.effect.is_per_run() && t.run >= runs.len())
-        {
-            Some(t) => Err(IdentifyError::Effects(format!(
-                "--effects {}:{}@{}: there are {} training runs (the --data files, in order)",
-                t.effect.name(),
-                t.joint + 1,
-                t.run + 1,
-                runs.len()
-            ))),
-            None => Ok(()),
-        },
+        None => Ok(()),
     }
 }
 

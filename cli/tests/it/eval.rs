@@ -98,17 +98,7 @@ fn extended_suite_finds_each_drift_and_invents_none() {
     ]);
     let mut drifts = 0;
     for c in cases.as_array().unwrap() {
-        let truth: Vec<String> = c["effects"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .filter(|e| e["effect"] == "drift")
-            .map(|e| format!("drift{}", e["joint"]))
-            .collect();
-        let got: Vec<String> = found(c)
-            .into_iter()
-            .filter(|f| f.starts_with("drift"))
-            .collect();
+        let (truth, got) = truth_and_found(c, "drift");
         assert_eq!(got, truth, "seed {}: {c}", c["spec"]["seed"]);
         drifts += truth.len();
     }
@@ -136,22 +126,29 @@ fn extended_suite_finds_each_per_run_offset_and_invents_none() {
         ]);
         assert_eq!(s["failed"], 0, "{s}");
         for c in cases.as_array().unwrap() {
-            let truth: Vec<String> = c["effects"]
-                .as_array()
-                .unwrap()
-                .iter()
-                .filter(|e| e["effect"] == "run_offset")
-                .map(|e| format!("run_offset{}", e["joint"]))
-                .collect();
-            let got: Vec<String> = found(c)
-                .into_iter()
-                .filter(|f| f.starts_with("run_offset"))
-                .collect();
+            let (truth, got) = truth_and_found(c, "run_offset");
             assert_eq!(got, truth, "seed {}: {c}", c["spec"]["seed"]);
             offsets += truth.len();
         }
     }
     assert_eq!(offsets, 3, "the seeds' offsets changed");
+}
+
+/// A case's terms of effect `kind` (`drift3`, …): those drawn in truth, and those found by the
+/// library's effect of the same name.
+fn truth_and_found(c: &serde_json::Value, kind: &str) -> (Vec<String>, Vec<String>) {
+    let truth = c["effects"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|e| e["effect"] == kind)
+        .map(|e| format!("{kind}{}", e["joint"]))
+        .collect();
+    let got = found(c)
+        .into_iter()
+        .filter(|f| f.starts_with(kind))
+        .collect();
+    (truth, got)
 }
 
 /// One hand-written case (`eval/patterns/NAME.json`) through the suite: its cases.json entry.
