@@ -4,9 +4,8 @@
 //! `inertia_com` or `inertia_origin = [ixx, ixy, ixz, iyy, iyz, izz]` (kg·m²; the off-diagonal
 //! entries are those of the inertia *tensor*, i.e. `ixy = −∫xy dm`, as in URDF). An optional
 //! `[effects]` table holds per-joint arrays ([`KNOWN_EFFECTS`]): the coefficients of
-//! `viscous`, `coulomb`, `stribeck`, `armature`, `offset`, `spring`, `drift` and `loadcoulomb`, and
-//! the
-//! friction's velocity scales `sign_velocity` (the sign is `tanh(q̇/v)`; absent or 0: exact) and
+//! `viscous`, `coulomb`, `asym_coulomb`, `stribeck`, `armature`, `offset`, `spring`, `drift`,
+//! `ripple_sin`, `ripple_cos` and `loadcoulomb`, and the friction's velocity scales `sign_velocity` (the sign is `tanh(q̇/v)`; absent or 0: exact) and
 //! `stribeck_velocity` (default 0.1) — the torque of each is [`crate::effects::Effect::column`].
 //! `dynid identify` writes such a file (`identified.params.toml`, [`InertialParams::to_toml`]).
 //!
@@ -45,9 +44,10 @@ use crate::tomlread::{Fail, Src, TableView};
 
 /// Names of the per-joint arrays an `[effects]` table may hold: the effects' coefficients, then
 /// the velocity scales of the friction terms.
-pub const KNOWN_EFFECTS: [&str; 13] = [
+pub const KNOWN_EFFECTS: [&str; 14] = [
     "viscous",
     "coulomb",
+    "asym_coulomb",
     "stribeck",
     "armature",
     "offset",
@@ -104,6 +104,10 @@ pub struct Effects {
     /// Coulomb friction `Fc`: `τ += Fc·sign(q̇)` (sign(0) = 0; smoothed to `tanh(q̇/v)` by
     /// [`Effects::sign_velocity`]).
     pub coulomb: Option<Vec<f64>>,
+    /// Asymmetric Coulomb friction `Fa = ½(Fc⁺ − Fc⁻)`: `τ += Fa·|sign(q̇)|` (smoothed like
+    /// `coulomb`), so that with `coulomb` = `½(Fc⁺ + Fc⁻)` the friction is `Fc⁺` moving forward and
+    /// `−Fc⁻` moving back.
+    pub asym_coulomb: Option<Vec<f64>>,
     /// Stribeck friction `Fs` (extra breakaway friction at low speed):
     /// `τ += Fs·sign(q̇)·exp(−(q̇/vs)²)`, `vs` from [`Effects::stribeck_velocity`].
     pub stribeck: Option<Vec<f64>>,
@@ -126,7 +130,7 @@ pub struct Effects {
     /// ([`Effects::load`]; `μ < 1`).
     pub loadcoulomb: Option<Vec<f64>>,
     /// Velocity `v` of the smoothed friction sign `tanh(q̇/v)` (Coulomb, Stribeck and
-    /// load-dependent friction; identification fits with one). Absent or 0: the exact sign.
+    /// asymmetric and load-dependent friction; identification fits with one). Absent or 0: the exact sign.
     pub sign_velocity: Option<Vec<f64>>,
     /// Stribeck velocity `vs` (default 0.1 rad/s or m/s).
     pub stribeck_velocity: Option<Vec<f64>>,
@@ -140,6 +144,7 @@ impl Effects {
     pub fn is_empty(&self) -> bool {
         self.viscous.is_none()
             && self.coulomb.is_none()
+            && self.asym_coulomb.is_none()
             && self.armature.is_none()
             && self.offset.is_none()
             && self.spring.is_none()
@@ -174,10 +179,11 @@ impl Effects {
     }
 
     /// Every `[effects]` array with its key, in [`KNOWN_EFFECTS`] order (the file's order).
-    pub fn arrays(&self) -> [(&'static str, &Option<Vec<f64>>); 13] {
+    pub fn arrays(&self) -> [(&'static str, &Option<Vec<f64>>); 14] {
         [
             ("viscous", &self.viscous),
             ("coulomb", &self.coulomb),
+            ("asym_coulomb", &self.asym_coulomb),
             ("stribeck", &self.stribeck),
             ("armature", &self.armature),
             ("offset", &self.offset),
@@ -199,6 +205,7 @@ impl Effects {
         match effect {
             Effect::Viscous => &mut self.viscous,
             Effect::Coulomb => &mut self.coulomb,
+            Effect::AsymCoulomb => &mut self.asym_coulomb,
             Effect::Stribeck => &mut self.stribeck,
             Effect::Offset | Effect::RunOffset => &mut self.offset,
             Effect::Armature => &mut self.armature,
@@ -211,10 +218,11 @@ impl Effects {
     }
 
     /// The additive effects and their coefficients, in summation order.
-    fn additive(&self) -> [(Effect, &Option<Vec<f64>>); 7] {
+    fn additive(&self) -> [(Effect, &Option<Vec<f64>>); 8] {
         [
             (Effect::Viscous, &self.viscous),
             (Effect::Coulomb, &self.coulomb),
+            (Effect::AsymCoulomb, &self.asym_coulomb),
             (Effect::Armature, &self.armature),
             (Effect::Offset, &self.offset),
             (Effect::Spring, &self.spring),
@@ -694,6 +702,7 @@ fn read_effects(t: &TableView<'_>, dof: usize) -> Result<Effects, ParamsError> {
     Ok(Effects {
         viscous: t.f64_array_opt("viscous", Some(dof))?,
         coulomb: t.f64_array_opt("coulomb", Some(dof))?,
+        asym_coulomb: t.f64_array_opt("asym_coulomb", Some(dof))?,
         stribeck: t.f64_array_opt("stribeck", Some(dof))?,
         armature: t.f64_array_opt("armature", Some(dof))?,
         offset: t.f64_array_opt("offset", Some(dof))?,

@@ -10,7 +10,8 @@
 //! `value`, `std`, `rel_std_percent`), `effects` (coefficients of the augmented model, same
 //! fields plus `joint`, `effect`, `run` (a per-run term's training run, from 1), `unit`),
 //! `effects_found` (`joint`, `effect`, `run`, `evidence`),
-//! `not_identifiable`, `error` (`before`/`after` × `train`/`validation`, each `per_joint` and
+//! `not_identifiable`, `at_rest` (per joint, the share of training samples at rest), `not_searched`
+//! (`asym_coulomb` terms left out for too few rests: `effect`, `at_rest`, `needed`), `error` (`before`/`after` × `train`/`validation`, each `per_joint` and
 //! `overall` relative RMS `‖τ̂−τ‖/‖τ‖` against the measured torque), `steps` (rigid → + effect →
 //! …), `selection`, `condition_number`, `cutoff_scan`, `guard` (per joint: the selected model
 //! against the plain fit on held-out training data, the winner, what the guard added, the weak
@@ -33,7 +34,7 @@ use rayon::prelude::*;
 use serde_json::{json, Value};
 
 use crate::dh::DhTable;
-use crate::effects::Term;
+use crate::effects::{Effect, Term};
 use crate::identify::{Errors, ModelResult, Outcome, Predictions, KEEP_RATE_PER_CUTOFF};
 use crate::io::{atomic_write, WriteError};
 
@@ -198,6 +199,8 @@ pub fn json_report(o: &Outcome, command: &str) -> Value {
         "effects": eff,
         "effects_found": found,
         "not_identifiable": o.merged.iter().map(|(t, w)| json!({"effect": t, "merged_with": w})).collect::<Vec<_>>(),
+        "at_rest": o.at_rest,
+        "not_searched": asym_not_searched(o).map(|(j, r)| json!({"effect": Term::new(Effect::AsymCoulomb, j).label(), "at_rest": r, "needed": Effect::ASYM_REST_MIN})).collect::<Vec<_>>(),
         "error": {
             "before": model_errors_json(&o.before),
             "after": model_errors_json(&o.after),
@@ -479,6 +482,12 @@ fn evidence_section(m: &mut String, o: &Outcome) {
             e.t_crit,
             e.torque_share
         );
+    }
+    let gated: Vec<String> = asym_not_searched(o)
+        .map(|(j, r)| format!("joint {} {:.1} %", j + 1, 100.0 * r))
+        .collect();
+    if !gated.is_empty() {
+        let _ = writeln!(m, "\n`asym_coulomb` (different friction levels in the two directions) was not searched where a joint is at rest in under {:.0} % of the training samples ({}): there its column is the offset's but for the velocity reversals, so these data cannot tell the two apart. Record motion with rests (point to point) to identify it.", 100.0 * Effect::ASYM_REST_MIN, gated.join(", "));
     }
     for (t, w) in &o.merged {
         let _ = writeln!(m, "\n`{t}` is not identifiable: its column equals a combination of {} for every motion, so it is merged there (not reported as an effect).", w.join(", "));
@@ -847,4 +856,15 @@ fn validation_plot(o: &Outcome, j: usize) -> Result<String, String> {
         root.present().map_err(|e| e.to_string())?;
     }
     Ok(svg)
+}
+
+/// The joints (and their share of samples at rest) where `--effects auto` did not search
+/// `asym_coulomb`: at rest too rarely to tell it from an offset.
+fn asym_not_searched(o: &Outcome) -> impl Iterator<Item = (usize, f64)> + '_ {
+    let auto = o.effects_mode == "auto";
+    o.at_rest
+        .iter()
+        .copied()
+        .enumerate()
+        .filter(move |&(_, r)| auto && r < Effect::ASYM_REST_MIN)
 }

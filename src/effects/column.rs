@@ -173,6 +173,7 @@ impl Term {
             Effect::Coulomb => st.sign(),
             Effect::Stribeck => st.sign() * (-(st.dq / st.scales.stribeck_v).powi(2)).exp(),
             Effect::Offset => 1.0,
+            Effect::AsymCoulomb => st.sign().abs(),
             Effect::Armature => st.ddq,
             Effect::Spring => st.q,
             Effect::Drift => st.t,

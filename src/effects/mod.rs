@@ -7,6 +7,7 @@
 //! | `coulomb` | `tanh(q̇ⱼ / vⱼ)`, `vⱼ` = 1 % of the RMS of q̇ⱼ (a sign that is smooth near rest) | N·m |
 //! | `stribeck` | `tanh(q̇ⱼ / vⱼ) · exp(−(q̇ⱼ / sⱼ)²)`, `sⱼ` = 10 % of the RMS of q̇ⱼ (extra breakaway friction at low speed) | N·m |
 //! | `offset` | `1` | N·m |
+//! | `asym_coulomb` | `|tanh(q̇ⱼ / vⱼ)|`, `vⱼ` as for `coulomb` (1 while the joint moves either way, 0 at rest: with `coulomb`, friction of different levels `Fc⁺`, `Fc⁻` in the two directions) | N·m |
 //! | `armature` | `q̈ⱼ` (rotor inertia reflected through the gear) | kg·m² |
 //! | `spring` | `qⱼ` (linear spring; its rest angle appears as an offset) | N·m/rad |
 //! | `drift` | `t`, the time since the start of the run (slow thermal drift: a motor's and gear's friction and a torque sensor's zero change as they warm up, over minutes — nearly linear over one run) | N·m/s |
@@ -21,10 +22,10 @@
 //! it is the peak of the periodogram of the residual against qⱼ of the model selected without
 //! them ([`crate::identify::ripple`]), then the pair is tested like any other column.
 //!
-//! Asymmetric Coulomb friction (`Fc⁺` for q̇ > 0, `Fc⁻` for q̇ < 0) is `coulomb` + `offset` while
-//! the joint moves: `Fc⁺·[q̇>0] − Fc⁻·[q̇<0] = ½(Fc⁺+Fc⁻)·sgn q̇ + ½(Fc⁺−Fc⁻)`. At rest the offset
-//! part vanishes in the data but not in the column, so on motions with rests the pair is often
-//! not found (docs/eval.md, the extended suite). More effects: add a variant, its
+//! Asymmetric Coulomb friction (`Fc⁺` for q̇ > 0, `Fc⁻` for q̇ < 0) is `coulomb` + `asym_coulomb`:
+//! `Fc⁺·[q̇>0] − Fc⁻·[q̇<0] = ½(Fc⁺+Fc⁻)·sgn q̇ + ½(Fc⁺−Fc⁻)·|sgn q̇|`. The second column is the
+//! constant `offset` wherever the joint moves, so only data with rests tells them apart (on a
+//! motion that never stops, either stands for the other). More effects: add a variant, its
 //! column in [`Effect::column`] (`column.rs`: the one implementation of its physics, used by
 //! identification, simulation and synthetic data) and its name.
 //!
@@ -54,6 +55,7 @@ pub enum Effect {
     Coulomb,
     Stribeck,
     Offset,
+    AsymCoulomb,
     Armature,
     Spring,
     Drift,
@@ -66,11 +68,12 @@ pub enum Effect {
 
 impl Effect {
     /// Every effect, in the order candidates are listed.
-    pub const ALL: [Effect; 7] = [
+    pub const ALL: [Effect; 8] = [
         Effect::Viscous,
         Effect::Coulomb,
         Effect::Stribeck,
         Effect::Offset,
+        Effect::AsymCoulomb,
         Effect::Armature,
         Effect::Spring,
         Effect::Drift,
@@ -88,6 +91,11 @@ impl Effect {
     /// A per-run offset: one column per training run after the first ([`Term::run`]), searched
     /// with [`Effect::ALL`] when there are two training runs or more.
     pub const PER_RUN: [Effect; 1] = [Effect::RunOffset];
+
+    /// Share of a joint's training samples at rest below which `asym_coulomb` is not searched:
+    /// its column then differs from `offset`'s only around velocity reversals (about 1 % of a
+    /// smooth motion), so the data cannot tell the two apart.
+    pub const ASYM_REST_MIN: f64 = 0.05;
 
     /// Whether the effect has a column per training run (see [`Effect::PER_RUN`]).
     pub fn is_per_run(self) -> bool {
@@ -119,6 +127,7 @@ impl Effect {
             Effect::Coulomb => "coulomb",
             Effect::Stribeck => "stribeck",
             Effect::Offset => "offset",
+            Effect::AsymCoulomb => "asym_coulomb",
             Effect::Armature => "armature",
             Effect::Spring => "spring",
             Effect::Drift => "drift",
@@ -141,6 +150,7 @@ impl Effect {
             Effect::Coulomb
             | Effect::Stribeck
             | Effect::Offset
+            | Effect::AsymCoulomb
             | Effect::RippleSin
             | Effect::RippleCos
             | Effect::RunOffset => "N·m",

@@ -102,3 +102,21 @@ fn effects_lists_name_a_runs_offset_with_at() {
     let err = parse_list("run_offset:2@x", 2).unwrap_err();
     assert!(err.contains("a number from 2"), "{err}");
 }
+
+#[test]
+fn coulomb_and_asym_coulomb_make_two_friction_levels() {
+    // Fc⁺ = 0.9 forward, Fc⁻ = 0.3 backward: coulomb ½(Fc⁺+Fc⁻), asym_coulomb ½(Fc⁺−Fc⁻).
+    let (up, down) = (0.9, 0.3);
+    let friction = |dq: f64| {
+        let s = &Scales::EXACT;
+        0.5 * (up + down) * Effect::Coulomb.column(0.0, dq, 0.0, 0.0, s)
+            + 0.5 * (up - down) * Effect::AsymCoulomb.column(0.0, dq, 0.0, 0.0, s)
+    };
+    assert!((friction(0.2) - up).abs() < 1e-15);
+    assert!((friction(-0.2) + down).abs() < 1e-15);
+    assert_eq!(friction(0.0), 0.0);
+    // Smoothed like `coulomb`: the same width near rest.
+    let s = Scales::from_rms_velocity(1.0);
+    let near = Effect::AsymCoulomb.column(0.0, -1e-4, 0.0, 0.0, &s);
+    assert!((near - Effect::Coulomb.column(0.0, 1e-4, 0.0, 0.0, &s)).abs() < 1e-15);
+}

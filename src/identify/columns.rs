@@ -34,6 +34,19 @@ pub(super) fn make_layout(
                 .with_coulomb_fraction(cfg.coulomb_width.unwrap_or(Scales::COULOMB_FRACTION))
         })
         .collect();
+    // Each joint's share of samples at rest, 1 − mean |tanh(q̇ / v)|.
+    let moving: Vec<(Vec<f64>, usize)> = train
+        .iter()
+        .map(|p| p.state_sums(|st, j, i| scales[j].sign(st.dq[j][i]).abs()))
+        .collect();
+    let at_rest: Vec<f64> = (0..n)
+        .map(|j| {
+            let (s, c) = moving
+                .iter()
+                .fold((0.0, 0usize), |(s, c), (s1, c1)| (s + s1[j], c + c1));
+            1.0 - s / c.max(1) as f64
+        })
+        .collect();
     let runs: Vec<String> = crate::log::Log::runs(train.iter().map(|p| &p.log))
         .into_iter()
         .map(str::to_string)
@@ -46,6 +59,9 @@ pub(super) fn make_layout(
                 .chain(&Effect::PER_RUN)
                 .flat_map(|&e| (0..n).map(move |j| Term::new(e, j)))
                 .flat_map(|t| per_run(t, runs.len()))
+                .filter(|t| {
+                    t.effect != Effect::AsymCoulomb || at_rest[t.joint] >= Effect::ASYM_REST_MIN
+                })
                 .collect(),
         ),
         // Ripple and load-dependent terms come in later stages (see `ripple`, `load_stage`).
@@ -103,6 +119,7 @@ pub(super) fn make_layout(
         fixed: Vec::new(),
         load: Vec::new(),
         runs,
+        at_rest,
     };
     (layout, declared, searched, merged)
 }

@@ -25,6 +25,9 @@ pub struct Layout {
     /// The training runs ([`crate::log::Log::run`]), in order, each once: a per-run term's
     /// [`Term::run`] indexes them.
     pub runs: Vec<String>,
+    /// Per joint, the share of training samples at rest (1 − mean |tanh(q̇ / v)|); `asym_coulomb`
+    /// is searched only where it reaches [`crate::effects::Effect::ASYM_REST_MIN`].
+    pub at_rest: Vec<f64>,
 }
 
 impl Layout {

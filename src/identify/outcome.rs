@@ -106,6 +106,8 @@ pub struct Outcome {
     pub scales: Vec<Scales>,
     /// The training runs a per-run term's [`Term::run`] indexes ([`super::Layout::runs`]).
     pub runs: Vec<String>,
+    /// Per joint, the share of training samples at rest ([`super::Layout::at_rest`]).
+    pub at_rest: Vec<f64>,
     /// Cut-offs tried by the automatic choice and their held-out errors (empty if fixed).
     pub cutoff_scan: Vec<CutoffTrial>,
     /// How the scan sampled a long training set (`None`: scanned whole, or not scanned).
@@ -246,6 +248,7 @@ pub(super) fn assemble(
         blocks: problem.blocks(),
         scales: layout.scales.clone(),
         runs: layout.runs.clone(),
+        at_rest: layout.at_rest.clone(),
         cutoff_scan: Vec::new(),
         scan_sampling: None,
         rescanned_with: Vec::new(),

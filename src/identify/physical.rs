@@ -149,6 +149,7 @@ pub(super) fn consistent(
                 hi: LOAD_FRICTION_MAX,
             }),
             Effect::Offset
+            | Effect::AsymCoulomb
             | Effect::RunOffset
             | Effect::Spring
             | Effect::Drift

@@ -518,6 +518,7 @@ mod tests {
             fixed: Vec::new(),
             load: Vec::new(),
             runs: Vec::new(),
+            at_rest: vec![0.0; n],
         };
         let window = |seed: u64| {
             let mut v = seed;

@@ -28,7 +28,10 @@ pub fn params(o: &Outcome) -> Option<InertialParams> {
             .get_or_insert_with(|| vec![0.0; n])[t.joint] += w * v;
     }
     // The model's friction sign is the fitted tanh(q̇/v); the plant must use the same.
-    if e.coulomb.is_some() || e.stribeck.is_some() || e.loadcoulomb.is_some() {
+    if [&e.coulomb, &e.asym_coulomb, &e.stribeck, &e.loadcoulomb]
+        .iter()
+        .any(|v| v.is_some())
+    {
         e.sign_velocity = Some(o.scales.iter().map(|s| s.coulomb_v).collect());
     }
     if e.ripple_sin.is_some() || e.ripple_cos.is_some() {
@@ -66,7 +69,7 @@ pub fn urdf(o: &Outcome, table: Option<&DhTable>) -> Option<Result<String, Strin
     Some(
         crate::urdf::export(table, Some(&p))
             .map(|s| {
-                let note = "<!-- dynid identify: identified (physically consistent) inertials; viscous and Coulomb friction as <dynamics damping friction>. URDF has no place for rotor inertia, offsets, springs, Stribeck or load-dependent friction, or for the smoothed friction sign: identified.params.toml carries them. -->\n";
+                let note = "<!-- dynid identify: identified (physically consistent) inertials; viscous and Coulomb friction as <dynamics damping friction>. URDF has no place for asymmetric Coulomb friction, rotor inertia, offsets, springs, Stribeck or load-dependent friction, or for the smoothed friction sign: identified.params.toml carries them. -->\n";
                 match s.find("<robot") {
                     Some(i) => format!("{}{note}{}", &s[..i], &s[i..]),
                     None => s,

@@ -118,6 +118,7 @@ def main(argv: list[str] | None = None) -> int:
     extra = (
         np.asarray(model.damping) * v
         + np.asarray(model.friction) * sgn
+        + effect(params, "asym_coulomb", n) * np.abs(sgn)
         + effect(params, "stribeck", n) * sgn * np.exp(-((v / stribeck_v) ** 2))
         + effect(params, "armature", n) * acc
         + effect(params, "offset", n)
