@@ -20,33 +20,19 @@ pub(super) fn make_layout(
     cfg: &Config,
 ) -> (Layout, Vec<Term>, Vec<Term>, Merged) {
     let n = base.dof();
-    // Every joint's Σ q̇² in one pass over each file's states.
-    let sums: Vec<(Vec<f64>, usize)> = train
-        .iter()
-        .map(|p| p.state_sums(|st, j, i| st.dq[j][i].powi(2)))
-        .collect();
-    let scales: Vec<Scales> = (0..n)
-        .map(|j| {
-            let (s, c) = sums
-                .iter()
-                .fold((0.0, 0usize), |(s, c), (s1, c1)| (s + s1[j], c + c1));
-            Scales::from_rms_velocity((s / c.max(1) as f64).sqrt())
+    let scales: Vec<Scales> = mean_over_samples(train, n, |st, j, i| st.dq[j][i].powi(2))
+        .into_iter()
+        .map(|ms| {
+            Scales::from_rms_velocity(ms.sqrt())
                 .with_coulomb_fraction(cfg.coulomb_width.unwrap_or(Scales::COULOMB_FRACTION))
         })
         .collect();
     // Each joint's share of samples at rest, 1 − mean |tanh(q̇ / v)|.
-    let moving: Vec<(Vec<f64>, usize)> = train
-        .iter()
-        .map(|p| p.state_sums(|st, j, i| scales[j].sign(st.dq[j][i]).abs()))
-        .collect();
-    let at_rest: Vec<f64> = (0..n)
-        .map(|j| {
-            let (s, c) = moving
-                .iter()
-                .fold((0.0, 0usize), |(s, c), (s1, c1)| (s + s1[j], c + c1));
-            1.0 - s / c.max(1) as f64
-        })
-        .collect();
+    let at_rest: Vec<f64> =
+        mean_over_samples(train, n, |st, j, i| scales[j].sign(st.dq[j][i]).abs())
+            .into_iter()
+            .map(|m| 1.0 - m)
+            .collect();
     let runs: Vec<String> = crate::log::Log::runs(train.iter().map(|p| &p.log))
         .into_iter()
         .map(str::to_string)
@@ -122,6 +108,23 @@ pub(super) fn make_layout(
         at_rest,
     };
     (layout, declared, searched, merged)
+}
+
+/// Per joint, the mean of `f` over every training sample (each file's states in one pass).
+fn mean_over_samples(
+    train: &[Prepared],
+    n: usize,
+    f: impl Fn(&crate::derivative::States, usize, usize) -> f64 + Sync + Copy,
+) -> Vec<f64> {
+    let sums: Vec<(Vec<f64>, usize)> = train.iter().map(|p| p.state_sums(f)).collect();
+    (0..n)
+        .map(|j| {
+            let (s, c) = sums
+                .iter()
+                .fold((0.0, 0usize), |(s, c), (s1, c1)| (s + s1[j], c + c1));
+            s / c.max(1) as f64
+        })
+        .collect()
 }
 
 /// `t` itself, or for a per-run effect one term per training run after the first (`t.run` 0:
