@@ -183,7 +183,7 @@ pub fn json_report(o: &Outcome, command: &str) -> Value {
                     "t_stat": s.evidence.t_stat,
                     "t_crit": s.evidence.t_crit,
                     "partial_corr": s.evidence.partial_corr,
-                    "test": "leave-one-block-out held-out error; one-sided t-test on per-block log ratios of the joint's held-out error (Bonferroni, family 1 %), gain >= 1 % of the joint's held-out residual variance and >= 1e-6 of its torque power",
+                    "test": "leave-one-block-out held-out error; one-sided t-test on per-block log ratios of the joint's held-out error, each capped at ±ln 4 (Bonferroni, family 1 %), gain >= 1 % of the joint's held-out residual variance and >= 1e-6 of its torque power",
                 }
             })
         })
@@ -451,7 +451,7 @@ fn evidence_section(m: &mut String, o: &Outcome) {
     let _ = writeln!(m, "## Evidence for each effect added\n");
     let _ = writeln!(
         m,
-        "Each candidate (effect, joint) is judged on held-out time blocks ({} blocks; each block predicted by a fit on the others): added only if a one-sided t-test on the per-block log ratios of the joint's held-out error passes (Bonferroni over the candidates, family level 1 %), it removes ≥ 1 % of the joint's held-out residual variance and explains ≥ 1e-6 of its torque power.\n",
+        "Each candidate (effect, joint) is judged on held-out time blocks ({} blocks; each block predicted by a fit on the others): added only if a one-sided t-test on the per-block log ratios of the joint's held-out error (each capped at ±ln 4) passes (Bonferroni over the candidates, family level 1 %), it removes ≥ 1 % of the joint's held-out residual variance and explains ≥ 1e-6 of its torque power.\n",
         o.blocks
     );
     let _ = writeln!(

@@ -665,7 +665,7 @@ mod tests {
     #[test]
     fn a_model_that_missed_a_joints_friction_gets_the_plain_terms_back() {
         // The oracle: joint 2 has viscous and Coulomb friction, joint 1 none. A search made
-        // blind (a significance level no evidence passes) selects the rigid body only, which
+        // blind (allowed no step) selects the rigid body only, which
         // the plain fit — with friction on every joint — beats on joint 2. The guard must see
         // that on held-out training blocks and add joint 2's plain terms (the true friction
         // among them), after which the model predicts joint 2 as well as the plain fit does on
@@ -675,7 +675,7 @@ mod tests {
         let val = Log::from(generate(&spec(5)));
         let cfg = Config {
             rules: Rules {
-                alpha: 1e-300,
+                max_steps: 0,
                 ..Rules::default()
             },
             ..Config::default()

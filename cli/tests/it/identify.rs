@@ -1289,14 +1289,16 @@ fn cli_identify_writes_residual_maps_of_the_final_model() {
     assert!(md.contains("held-out gain"));
 }
 
-/// The guard's coefficient route on the real TIAGo run (data/real/tiago_figaroh): the search
-/// leaves `coulomb3` out (its held-out gain is concentrated in the few blocks where joint 3
-/// reverses, so the per-block test falls short), and so does the guard's block test; but the
-/// coefficient, fitted with the model, is many block-jackknife σ from zero. The guard must add it
-/// by that route, and joint 3 must then predict the unseen last 30 % of the run as well as the
-/// plain fit (before the route: 1.40 × the plain fit's error).
+/// Joint 3 of the real TIAGo run (data/real/tiago_figaroh): `coulomb3` removes about 70 % of its
+/// held-out residual, concentrated in the blocks where the joint reverses. With uncapped per-block
+/// log ratios the search's t-test fell short (t = 3.2 against 4.0) and only the guard's
+/// coefficient route brought it back; with each ratio capped at ±ln 4 the search must find it
+/// itself, and joint 3 must predict the unseen last 30 % of the run as well as the plain fit
+/// (without the term: 1.40 × the plain fit's error). The coefficient route still runs where the
+/// plain fit wins pooled but not block after block (the torso, joint 1): its tests are reported
+/// and a term is added only above its critical value.
 #[test]
-fn tiago_joint3_gets_its_coulomb_friction_from_the_coefficient_route() {
+fn tiago_joint3_coulomb_friction_is_found_by_the_search() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../data/real/tiago_figaroh");
     let dir = tempfile::tempdir().unwrap();
     let arm_dir = dir.path().join("arm");
@@ -1328,20 +1330,18 @@ fn tiago_joint3_gets_its_coulomb_friction_from_the_coefficient_route() {
         .iter()
         .map(|e| format!("{}{}", e["effect"].as_str().unwrap(), e["joint"]))
         .collect();
-    assert!(!found.contains(&"coulomb3".to_string()), "{found:?}");
+    assert!(found.contains(&"coulomb3".to_string()), "{found:?}");
     let j3 = &json["guard"]["joints"][2];
-    assert_eq!(j3["added"], serde_json::json!(["coulomb3"]), "{j3}");
-    let test = j3["coefficient_tests"]
+    for t in json["guard"]["joints"]
         .as_array()
         .unwrap()
         .iter()
-        .find(|c| c["term"] == "coulomb3")
-        .unwrap();
-    assert_eq!(test["added"], true, "{test}");
-    assert!(
-        test["z"].as_f64().unwrap() > 1.5 * test["z_crit"].as_f64().unwrap(),
-        "{test}"
-    );
+        .flat_map(|j| j["coefficient_tests"].as_array().unwrap())
+    {
+        let (z, z_crit) = (t["z"].as_f64().unwrap(), t["z_crit"].as_f64().unwrap());
+        assert!(z.is_finite() && z_crit > 2.0, "{t}");
+        assert!(z > z_crit || t["added"] == false, "{t}");
+    }
     let (sel, plain) = (
         j3["validation_selected"].as_f64().unwrap(),
         j3["validation_plain"].as_f64().unwrap(),
