@@ -5,7 +5,8 @@
 //! entries are those of the inertia *tensor*, i.e. `ixy = −∫xy dm`, as in URDF). An optional
 //! `[effects]` table holds per-joint arrays ([`KNOWN_EFFECTS`]): the coefficients of
 //! `viscous`, `coulomb`, `asym_coulomb`, `stribeck`, `armature`, `offset`, `spring`, `drift`,
-//! `ripple_sin`, `ripple_cos` and `loadcoulomb`, and the friction's velocity scales `sign_velocity` (the sign is `tanh(q̇/v)`; absent or 0: exact) and
+//! `ripple_sin`, `ripple_cos` and `loadcoulomb`, and the friction's velocity scales
+//! `sign_velocity` (the sign is `tanh(q̇/v)`; absent or 0: exact) and
 //! `stribeck_velocity` (default 0.1) — the torque of each is [`crate::effects::Effect::column`].
 //! `dynid identify` writes such a file (`identified.params.toml`, [`InertialParams::to_toml`]).
 //!
@@ -130,7 +131,8 @@ pub struct Effects {
     /// ([`Effects::load`]; `μ < 1`).
     pub loadcoulomb: Option<Vec<f64>>,
     /// Velocity `v` of the smoothed friction sign `tanh(q̇/v)` (Coulomb, Stribeck and
-    /// asymmetric and load-dependent friction; identification fits with one). Absent or 0: the exact sign.
+    /// asymmetric and load-dependent friction; identification fits with one). Absent or 0: the
+    /// exact sign.
     pub sign_velocity: Option<Vec<f64>>,
     /// Stribeck velocity `vs` (default 0.1 rad/s or m/s).
     pub stribeck_velocity: Option<Vec<f64>>,

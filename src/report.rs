@@ -10,8 +10,9 @@
 //! `value`, `std`, `rel_std_percent`), `effects` (coefficients of the augmented model, same
 //! fields plus `joint`, `effect`, `run` (a per-run term's training run, from 1), `unit`),
 //! `effects_found` (`joint`, `effect`, `run`, `evidence`),
-//! `not_identifiable`, `at_rest` (per joint, the share of training samples at rest), `not_searched`
-//! (`asym_coulomb` terms left out for too few rests: `effect`, `at_rest`, `needed`), `error` (`before`/`after` × `train`/`validation`, each `per_joint` and
+//! `not_identifiable`, `at_rest` (per joint, the share of training samples at rest),
+//! `not_searched` (`asym_coulomb` terms left out for too few rests: `effect`, `at_rest`,
+//! `needed`), `error` (`before`/`after` × `train`/`validation`, each `per_joint` and
 //! `overall` relative RMS `‖τ̂−τ‖/‖τ‖` against the measured torque), `steps` (rigid → + effect →
 //! …), `selection`, `condition_number`, `cutoff_scan`, `guard` (per joint: the selected model
 //! against the plain fit on held-out training data, the winner, what the guard added, the weak
@@ -866,5 +867,5 @@ fn asym_not_searched(o: &Outcome) -> impl Iterator<Item = (usize, f64)> + '_ {
         .iter()
         .copied()
         .enumerate()
-        .filter(move |&(_, r)| auto && r < Effect::ASYM_REST_MIN)
+        .filter(move |&(_, r)| auto && !Effect::rests_enough(r))
 }

@@ -97,6 +97,12 @@ impl Effect {
     /// smooth motion), so the data cannot tell the two apart.
     pub const ASYM_REST_MIN: f64 = 0.05;
 
+    /// Whether `asym_coulomb` is searched on a joint at rest in share `at_rest` of the training
+    /// samples ([`Effect::ASYM_REST_MIN`]).
+    pub fn rests_enough(at_rest: f64) -> bool {
+        at_rest >= Effect::ASYM_REST_MIN
+    }
+
     /// Whether the effect has a column per training run (see [`Effect::PER_RUN`]).
     pub fn is_per_run(self) -> bool {
         Effect::PER_RUN.contains(&self)

@@ -46,7 +46,7 @@ pub(super) fn make_layout(
                 .flat_map(|&e| (0..n).map(move |j| Term::new(e, j)))
                 .flat_map(|t| per_run(t, runs.len()))
                 .filter(|t| {
-                    t.effect != Effect::AsymCoulomb || at_rest[t.joint] >= Effect::ASYM_REST_MIN
+                    t.effect != Effect::AsymCoulomb || Effect::rests_enough(at_rest[t.joint])
                 })
                 .collect(),
         ),
