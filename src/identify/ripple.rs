@@ -17,7 +17,7 @@ use super::layout::Layout;
 use super::prepare::{cores, Prepared};
 use super::problem::{with_hint, Problem};
 use super::rows::Rows;
-use super::select::{chain_stages, select, Selected};
+use super::select::{chain_stages, select, select_units, Selected};
 use super::{Config, IdentifyError};
 use crate::effects::{Effect, EffectsSpec, Term};
 
@@ -303,11 +303,16 @@ pub(super) fn ripple_stage(
     .map_err(|e| IdentifyError::Rank(with_hint(e, train)))?;
     let mut scans = scan_joints(&joints, &samples, &fixed)?;
     let found = |t: &Term| scans.iter().any(|s| s.joint == t.joint);
-    let search: Vec<Term> = match &cfg.effects {
+    // Each joint's sine and cosine are one candidate: the ripple's phase is unknown.
+    let search: Vec<Vec<Term>> = match &cfg.effects {
         EffectsSpec::Auto => scans
             .iter()
             .filter(|s| s.significant)
-            .flat_map(|s| Effect::RIPPLE.map(|effect| Term::new(effect, s.joint)))
+            .map(|s| {
+                Effect::RIPPLE
+                    .map(|effect| Term::new(effect, s.joint))
+                    .to_vec()
+            })
             .collect(),
         EffectsSpec::Fixed(_) => Vec::new(),
     };
@@ -320,10 +325,14 @@ pub(super) fn ripple_stage(
         selection: first,
         declared,
     } = selected;
-    let l2 = with_ripple(&problem.layout, &scans, fixed.iter().chain(&search));
+    let l2 = with_ripple(
+        &problem.layout,
+        &scans,
+        fixed.iter().chain(search.iter().flatten()),
+    );
     let p2 = Problem::build(base, l2, train, cfg.blocks);
     let start: Vec<Term> = first.terms.iter().chain(&fixed).copied().collect();
-    let mut second = select(&p2, &start, &search, &cfg.rules)?;
+    let mut second = select_units(&p2, &start, &search, &cfg.rules)?;
     if fixed.is_empty() && second.steps.is_empty() {
         let mut first = first;
         first.collinear.extend(second.collinear);

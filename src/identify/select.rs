@@ -19,6 +19,10 @@
 //! false positive. The load-dependent effects are searched after the rest, in a second stage
 //! ([`super::load_stage`]).
 //!
+//! A candidate is a *unit* of terms ([`select_units`]): one term, or one effect with several
+//! columns (a ripple's sine and cosine, whose phase is unknown, so either alone shows only part of
+//! it), tested, counted in the Bonferroni correction, grouped and pruned as a whole.
+//!
 //! The **held-out gain** of a candidate is the fraction of *its joint's* held-out residual
 //! removed (a share ≤ 100 %); it was the gain over all joints divided by one joint's residual.
 
@@ -159,6 +163,19 @@ pub fn select(
     candidates: &[Term],
     rules: &Rules,
 ) -> Result<Selection, RankError> {
+    let units: Vec<Vec<Term>> = candidates.iter().map(|&c| vec![c]).collect();
+    select_units(p, declared, &units, rules)
+}
+
+/// [`select`] over candidate *units*: the terms of one unit are one effect with several columns
+/// (a ripple's sine and cosine: its phase is unknown, so either column alone shows only part of
+/// it) and are tested, counted in the Bonferroni correction and added together.
+pub fn select_units(
+    p: &Problem,
+    declared: &[Term],
+    units: &[Vec<Term>],
+    rules: &Rules,
+) -> Result<Selection, RankError> {
     let mut terms: Vec<Term> = declared.to_vec();
     let mut steps = Vec::new();
     let mut collinear = Vec::new();
@@ -170,27 +187,30 @@ pub fn select(
         // Every candidate's fits extend this model's: their QR starts from its reflections.
         let prefixes = p.loo_prefixes(&subset, &w);
         let cur = p.cv_sse_from(Some(&prefixes), &subset, &w)?;
-        let open: Vec<Term> = candidates
+        let open_units: Vec<&[Term]> = units
             .iter()
-            .copied()
-            .filter(|c| !terms.contains(c))
+            .filter(|u| !u.is_empty() && !u.iter().all(|c| terms.contains(c)))
+            .map(Vec::as_slice)
             .collect();
+        let open: Vec<Term> = open_units.iter().flat_map(|u| u.iter().copied()).collect();
         if open.is_empty() || blocks < 3 {
             break;
         }
-        let m = open.len() as f64;
+        let m = open_units.len() as f64;
         let t_crit = t_quantile(1.0 - rules.alpha / m, (blocks - 1) as f64);
         // The best passing candidate is added; the best overall is reported when none passes.
         let mut best: Option<Evidence> = None;
         let mut best_pass: Option<Evidence> = None;
-        let found: Vec<Option<Evidence>> = open
+        let found: Vec<Option<Evidence>> = open_units
             .par_iter()
-            .map(|&c| evidence(p, &terms, (&subset, &prefixes), &w, &cur, c, t_crit))
+            .map(|&u| evidence(p, &terms, (&subset, &prefixes), &w, &cur, u, t_crit))
             .collect();
-        for (&c, ev) in open.iter().zip(found) {
+        for (&u, ev) in open_units.iter().zip(found) {
             let Some(ev) = ev else {
-                if !collinear.contains(&c.label()) {
-                    collinear.push(c.label());
+                for c in u {
+                    if !collinear.contains(&c.label()) {
+                        collinear.push(c.label());
+                    }
                 }
                 continue;
             };
@@ -214,22 +234,38 @@ pub fn select(
         match best_pass {
             Some(mut b) => {
                 b.accepted = true;
-                terms.push(b.term);
-                steps.push(Step {
-                    added: b.term,
-                    label: b.label.clone(),
-                    model: terms.iter().map(Term::label).collect(),
-                    evidence: b,
-                });
+                let unit = open_units
+                    .iter()
+                    .find(|u| u[0] == b.term)
+                    .map_or(&[][..], |u| &u[..]);
+                for &t in unit {
+                    if terms.contains(&t) {
+                        continue;
+                    }
+                    terms.push(t);
+                    steps.push(Step {
+                        added: t,
+                        label: t.label(),
+                        model: terms.iter().map(Term::label).collect(),
+                        evidence: b.clone(),
+                    });
+                }
             }
-            None => match group_step(p, &terms, &open, &collinear, (&w, &cur, &prefixes), rules)? {
+            None => match group_step(
+                p,
+                &terms,
+                &open_units,
+                &collinear,
+                (&w, &cur, &prefixes),
+                rules,
+            )? {
                 Some(group) => {
                     for mut ev in group {
                         ev.accepted = true;
                         terms.push(ev.term);
                         steps.push(Step {
                             added: ev.term,
-                            label: ev.label.clone(),
+                            label: ev.term.label(),
                             model: terms.iter().map(Term::label).collect(),
                             evidence: ev,
                         });
@@ -305,26 +341,27 @@ pub(super) fn chain_stages(
 fn group_step(
     p: &Problem,
     terms: &[Term],
-    open: &[Term],
+    open: &[&[Term]],
     collinear: &[String],
     (w, cur, prefixes): (&[f64], &[Vec<f64>], &[Prefix]),
     rules: &Rules,
 ) -> Result<Option<Vec<Evidence>>, RankError> {
     let blocks = p.blocks();
-    let mut joints: Vec<usize> = open.iter().map(|t| t.joint).collect();
+    let mut joints: Vec<usize> = open.iter().map(|u| u[0].joint).collect();
     joints.sort_unstable();
     joints.dedup();
-    let groups: Vec<Vec<Term>> = joints
+    // A group is two or more of a joint's units (one unit alone was tested as a candidate).
+    let groups: Vec<Vec<&[Term]>> = joints
         .iter()
         .map(|&j| {
             open.iter()
                 .copied()
-                .filter(|t| {
-                    t.joint == j
-                        && t.effect != crate::effects::Effect::Stribeck
-                        && !collinear.contains(&t.label())
+                .filter(|u| {
+                    u[0].joint == j
+                        && u[0].effect != crate::effects::Effect::Stribeck
+                        && !u.iter().any(|t| collinear.contains(&t.label()))
                 })
-                .collect::<Vec<Term>>()
+                .collect::<Vec<&[Term]>>()
         })
         .filter(|g| g.len() >= 2)
         .collect();
@@ -332,14 +369,14 @@ fn group_step(
         return Ok(None);
     }
     let t_group = t_quantile(1.0 - rules.alpha / groups.len() as f64, (blocks - 1) as f64);
-    let mut best: Option<(f64, Vec<Term>)> = None;
+    let mut best: Option<(f64, Vec<&[Term]>)> = None;
     let tested: Vec<Option<(f64, f64)>> = groups
         .par_iter()
         .map(|g| {
             let mut with = terms.to_vec();
-            with.extend(g);
+            with.extend(g.iter().flat_map(|u| u.iter().copied()));
             let new = p.cv_sse_from(Some(prefixes), &p.subset(&with), w).ok()?;
-            Some(joint_test(cur, &new, g[0].joint))
+            Some(joint_test(cur, &new, g[0][0].joint))
         })
         .collect();
     for (g, t) in groups.iter().zip(tested) {
@@ -358,7 +395,12 @@ fn group_step(
             .par_iter()
             .map(|&m| {
                 let mut base = terms.to_vec();
-                base.extend(members.iter().copied().filter(|&o| o != m));
+                base.extend(
+                    members
+                        .iter()
+                        .filter(|&&o| o != m)
+                        .flat_map(|u| u.iter().copied()),
+                );
                 let sub = p.subset(&base);
                 let w2 = p.weights(&sub)?;
                 let pre = p.loo_prefixes(&sub, &w2);
@@ -382,12 +424,26 @@ fn group_step(
         {
             Some(weak) => {
                 let drop = weak.term;
-                members.retain(|&m| m != drop);
+                members.retain(|m| m[0] != drop);
                 if members.is_empty() {
                     return Ok(None);
                 }
             }
-            None if evs.len() == members.len() => return Ok(Some(evs)),
+            None if evs.len() == members.len() => {
+                // Each unit's terms, every one with its unit's evidence.
+                return Ok(Some(
+                    members
+                        .iter()
+                        .zip(evs)
+                        .flat_map(|(u, e)| {
+                            u.iter().map(move |&t| Evidence {
+                                term: t,
+                                ..e.clone()
+                            })
+                        })
+                        .collect(),
+                ));
+            }
             None => return Ok(None),
         }
     }
@@ -439,12 +495,13 @@ fn evidence(
     (subset, prefixes): (&[usize], &[Prefix]),
     w: &[f64],
     cur: &[Vec<f64>],
-    c: Term,
+    unit: &[Term],
     t_crit: f64,
 ) -> Option<Evidence> {
     let blocks = p.blocks();
+    let c = unit[0];
     let mut with = terms.to_vec();
-    with.push(c);
+    with.extend(unit.iter().filter(|t| !terms.contains(t)));
     let sub2 = p.subset(&with);
     let new = p.cv_sse_from(Some(prefixes), &sub2, w).ok()?;
     // Test on per-block log ratios of the candidate joint's held-out error: scale-free, so
@@ -460,9 +517,10 @@ fn evidence(
     let d: f64 = (0..blocks).map(|b| cur[b][c.joint] - new[b][c.joint]).sum();
     let share = d / (w[c.joint] * w[c.joint] * p.target_ss(c.joint));
     let partial_corr = p.partial_corr(subset, c).unwrap_or(0.0);
+    let label = unit.iter().map(Term::label).collect::<Vec<_>>().join("+");
     Some(Evidence {
         term: c,
-        label: c.label(),
+        label,
         heldout_gain,
         torque_share: share,
         t_stat,

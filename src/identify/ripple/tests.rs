@@ -150,6 +150,16 @@ fn the_stage_finds_a_plants_ripple_and_invents_none() {
                 .any(|l| l.starts_with("ripple_") && l.ends_with('1')),
             "{labels:?}"
         );
+        // The sine and the cosine are one candidate: both added, on one test of the pair.
+        let pair: Vec<_> = out
+            .selection
+            .steps
+            .iter()
+            .filter(|st| st.added.effect.is_ripple())
+            .collect();
+        assert_eq!(pair.len(), 2, "seed {seed}: {labels:?}");
+        assert_eq!(pair[0].evidence, pair[1].evidence, "seed {seed}");
+        assert_eq!(pair[0].evidence.label, "ripple_sin2+ripple_cos2");
     }
     for seed in [5, 6, 7] {
         let out = identify_ripple(seed, None);
