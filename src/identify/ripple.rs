@@ -17,7 +17,9 @@ use super::layout::Layout;
 use super::prepare::{cores, Prepared};
 use super::problem::{with_hint, Problem};
 use super::rows::Rows;
-use super::select::{chain_stages, select, select_units, Selected};
+use super::select::{
+    chain_stages, joint_group, select, select_units, Rules, Selected, Selection, Step,
+};
 use super::{Config, IdentifyError};
 use crate::effects::{Effect, EffectsSpec, Term};
 
@@ -333,6 +335,7 @@ pub(super) fn ripple_stage(
     let p2 = Problem::build(base, l2, train, cfg.blocks);
     let start: Vec<Term> = first.terms.iter().chain(&fixed).copied().collect();
     let mut second = select_units(&p2, &start, &search, &cfg.rules)?;
+    with_joint_groups(&p2, &mut second, &search, searched, &cfg.rules)?;
     if fixed.is_empty() && second.steps.is_empty() {
         let mut first = first;
         first.collinear.extend(second.collinear);
@@ -362,6 +365,63 @@ pub(super) fn ripple_stage(
     }
     second.stopped_on = second.stopped_on.or(first.stopped_on.clone());
     Ok((chain_stages(p2, first, second, declared, fixed, &[]), scans))
+}
+
+/// A significant ripple whose pair failed alone, tested with its joint's other candidates of the
+/// first stage as one group ([`joint_group`], the family every open candidate): a ripple hides
+/// the joint's other effects in their residual and they hide it in its. Kept only when the pair
+/// survives the group's pruning; repeated while a group is kept.
+fn with_joint_groups(
+    p2: &Problem,
+    second: &mut Selection,
+    pairs: &[Vec<Term>],
+    searched: &[Term],
+    rules: &Rules,
+) -> Result<(), IdentifyError> {
+    loop {
+        let missed: Vec<usize> = pairs
+            .iter()
+            .map(|u| u[0].joint)
+            .filter(|&j| {
+                !second
+                    .terms
+                    .iter()
+                    .any(|t| t.effect.is_ripple() && t.joint == j)
+            })
+            .collect();
+        if missed.is_empty() {
+            return Ok(());
+        }
+        let open = |t: &Term| !second.terms.contains(t);
+        let family = pairs.len() + searched.iter().filter(|t| open(t)).count();
+        let units: Vec<Vec<Term>> = pairs
+            .iter()
+            .filter(|u| missed.contains(&u[0].joint))
+            .cloned()
+            .chain(
+                searched
+                    .iter()
+                    .filter(|t| missed.contains(&t.joint) && open(t))
+                    .map(|&t| vec![t]),
+            )
+            .collect();
+        let Some(group) = joint_group(p2, &second.terms, &units, family, rules)? else {
+            return Ok(());
+        };
+        if !group.iter().any(|e| e.term.effect.is_ripple()) {
+            return Ok(());
+        }
+        for mut ev in group {
+            ev.accepted = true;
+            second.terms.push(ev.term);
+            second.steps.push(Step {
+                added: ev.term,
+                label: ev.term.label(),
+                model: second.terms.iter().map(Term::label).collect(),
+                evidence: ev,
+            });
+        }
+    }
 }
 
 /// Each joint's periodogram peak ([`periodogram_peak`]); a joint of `fixed` that cannot be

@@ -254,7 +254,7 @@ pub fn select_units(
             None => match group_step(
                 p,
                 &terms,
-                &open_units,
+                (&open_units, open_units.len()),
                 &collinear,
                 (&w, &cur, &prefixes),
                 rules,
@@ -330,6 +330,40 @@ pub(super) fn chain_stages(
     }
 }
 
+/// The group step of [`select_units`] alone, on top of `terms`: each joint's units in `units`
+/// tested together, the best passing group pruned to the units that pass as the last one added
+/// (corrected for `family` candidates, the search these units are part of). For a ripple whose
+/// pair fails alone because the same joint has other effects the model lacks yet, and those fail
+/// alone because the ripple is in their residual.
+pub(super) fn joint_group(
+    p: &Problem,
+    terms: &[Term],
+    units: &[Vec<Term>],
+    family: usize,
+    rules: &Rules,
+) -> Result<Option<Vec<Evidence>>, RankError> {
+    if p.blocks() < 3 {
+        return Ok(None);
+    }
+    let subset = p.subset(terms);
+    let w = p.weights(&subset)?;
+    let prefixes = p.loo_prefixes(&subset, &w);
+    let cur = p.cv_sse_from(Some(&prefixes), &subset, &w)?;
+    let open: Vec<&[Term]> = units
+        .iter()
+        .filter(|u| !u.is_empty() && !u.iter().all(|c| terms.contains(c)))
+        .map(Vec::as_slice)
+        .collect();
+    group_step(
+        p,
+        terms,
+        (&open, family.max(open.len())),
+        &[],
+        (&w, &cur, &prefixes),
+        rules,
+    )
+}
+
 /// When no single candidate passes: effects that only show together on one joint (an offset with
 /// a spring, rotor inertia with an offset: each alone is partly absorbed by the rigid-body
 /// columns). For each joint, all its open candidates are added at once and the joint's held-out
@@ -337,11 +371,12 @@ pub(super) fn chain_stages(
 /// then pruned backwards: every member must pass the single-candidate test as the *last* one
 /// added to the model with the others (the weakest failing member is dropped, and the rest
 /// re-tested), so a group never brings in a term that could not stand on its own at the end.
-/// Returns the members kept, each with its evidence as the last one added.
+/// Returns the members kept, each with its evidence as the last one added. `family` is the
+/// number of candidates the pruning's single-candidate tests are corrected for.
 fn group_step(
     p: &Problem,
     terms: &[Term],
-    open: &[&[Term]],
+    (open, family): (&[&[Term]], usize),
     collinear: &[String],
     (w, cur, prefixes): (&[f64], &[Vec<f64>], &[Prefix]),
     rules: &Rules,
@@ -390,7 +425,7 @@ fn group_step(
     };
     // Backward pruning: each member must pass as the last one added.
     loop {
-        let t_crit = t_quantile(1.0 - rules.alpha / open.len() as f64, (blocks - 1) as f64);
+        let t_crit = t_quantile(1.0 - rules.alpha / family as f64, (blocks - 1) as f64);
         let tested: Vec<Result<Option<Evidence>, RankError>> = members
             .par_iter()
             .map(|&m| {
