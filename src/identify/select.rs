@@ -205,6 +205,10 @@ pub fn select_units(
             .par_iter()
             .map(|&u| evidence(p, &terms, (&subset, &prefixes), &w, &cur, u, t_crit))
             .collect();
+        let gains: Vec<f64> = found
+            .iter()
+            .map(|e| e.as_ref().map_or(f64::NEG_INFINITY, |e| e.heldout_gain))
+            .collect();
         for (&u, ev) in open_units.iter().zip(found) {
             let Some(ev) = ev else {
                 for c in u {
@@ -255,7 +259,7 @@ pub fn select_units(
                 p,
                 &terms,
                 (&open_units, open_units.len()),
-                &collinear,
+                (&collinear, Some(&gains)),
                 (&w, &cur, &prefixes),
                 rules,
             )? {
@@ -358,7 +362,7 @@ pub(super) fn joint_group(
         p,
         terms,
         (&open, family.max(open.len())),
-        &[],
+        (&[], None),
         (&w, &cur, &prefixes),
         rules,
     )
@@ -377,7 +381,7 @@ fn group_step(
     p: &Problem,
     terms: &[Term],
     (open, family): (&[&[Term]], usize),
-    collinear: &[String],
+    (collinear, gains): (&[String], Option<&[f64]>),
     (w, cur, prefixes): (&[f64], &[Vec<f64>], &[Prefix]),
     rules: &Rules,
 ) -> Result<Option<Vec<Evidence>>, RankError> {
@@ -385,21 +389,35 @@ fn group_step(
     let mut joints: Vec<usize> = open.iter().map(|u| u[0].joint).collect();
     joints.sort_unstable();
     joints.dedup();
-    // A group is two or more of a joint's units (one unit alone was tested as a candidate).
-    let groups: Vec<Vec<&[Term]>> = joints
-        .iter()
-        .map(|&j| {
-            open.iter()
-                .copied()
-                .filter(|u| {
-                    u[0].joint == j
-                        && u[0].effect != crate::effects::Effect::Stribeck
-                        && !u.iter().any(|t| collinear.contains(&t.label()))
-                })
-                .collect::<Vec<&[Term]>>()
-        })
-        .filter(|g| g.len() >= 2)
-        .collect();
+    // A group is two or more of a joint's units (one unit alone was tested as a candidate): all
+    // of them, and, given the single-candidate gains, those that each lowered the joint's held-out
+    // error (the rest only add noise to the group's fit).
+    let mut groups: Vec<Vec<&[Term]>> = Vec::new();
+    for &j in &joints {
+        let all: Vec<(usize, &[Term])> = open
+            .iter()
+            .copied()
+            .enumerate()
+            .filter(|(_, u)| {
+                u[0].joint == j
+                    && u[0].effect != crate::effects::Effect::Stribeck
+                    && !u.iter().any(|t| collinear.contains(&t.label()))
+            })
+            .collect();
+        if let Some(g) = gains {
+            let helpful: Vec<&[Term]> = all
+                .iter()
+                .filter(|(i, _)| g[*i] > 0.0)
+                .map(|&(_, u)| u)
+                .collect();
+            if helpful.len() >= 2 && helpful.len() < all.len() {
+                groups.push(helpful);
+            }
+        }
+        if all.len() >= 2 {
+            groups.push(all.into_iter().map(|(_, u)| u).collect());
+        }
+    }
     if groups.is_empty() {
         return Ok(None);
     }
