@@ -182,11 +182,7 @@ pub fn select_units(
     let mut stopped_on = None;
     let blocks = p.blocks();
     for _ in 0..rules.max_steps {
-        let subset = p.subset(&terms);
-        let w = p.weights(&subset)?;
-        // Every candidate's fits extend this model's: their QR starts from its reflections.
-        let prefixes = p.loo_prefixes(&subset, &w);
-        let cur = p.cv_sse_from(Some(&prefixes), &subset, &w)?;
+        let (subset, w, prefixes, cur) = fitted(p, &terms)?;
         let open_units: Vec<&[Term]> = units
             .iter()
             .filter(|u| !u.is_empty() && !u.iter().all(|c| terms.contains(c)))
@@ -349,10 +345,7 @@ pub(super) fn joint_group(
     if p.blocks() < 3 {
         return Ok(None);
     }
-    let subset = p.subset(terms);
-    let w = p.weights(&subset)?;
-    let prefixes = p.loo_prefixes(&subset, &w);
-    let cur = p.cv_sse_from(Some(&prefixes), &subset, &w)?;
+    let (_, w, prefixes, cur) = fitted(p, terms)?;
     let open: Vec<&[Term]> = units
         .iter()
         .filter(|u| !u.is_empty() && !u.iter().all(|c| terms.contains(c)))
@@ -368,30 +361,30 @@ pub(super) fn joint_group(
     )
 }
 
-/// When no single candidate passes: effects that only show together on one joint (an offset with
-/// a spring, rotor inertia with an offset: each alone is partly absorbed by the rigid-body
-/// columns). For each joint, all its open candidates are added at once and the joint's held-out
-/// error is tested as for one candidate (Bonferroni over the joints tried). A passing group is
-/// then pruned backwards: every member must pass the single-candidate test as the *last* one
-/// added to the model with the others (the weakest failing member is dropped, and the rest
-/// re-tested), so a group never brings in a term that could not stand on its own at the end.
-/// Returns the members kept, each with its evidence as the last one added. `family` is the
-/// number of candidates the pruning's single-candidate tests are corrected for.
-fn group_step(
-    p: &Problem,
-    terms: &[Term],
-    (open, family): (&[&[Term]], usize),
-    (collinear, gains): (&[String], Option<&[f64]>),
-    (w, cur, prefixes): (&[f64], &[Vec<f64>], &[Prefix]),
-    rules: &Rules,
-) -> Result<Option<Vec<Evidence>>, RankError> {
-    let blocks = p.blocks();
+/// The held-out state of the model `terms`: its columns, weights, leave-one-block-out QR
+/// prefixes (every candidate's fits extend them) and per-block held-out SSE.
+type Fitted = (Vec<usize>, Vec<f64>, Vec<Prefix>, Vec<Vec<f64>>);
+
+fn fitted(p: &Problem, terms: &[Term]) -> Result<Fitted, RankError> {
+    let subset = p.subset(terms);
+    let w = p.weights(&subset)?;
+    let prefixes = p.loo_prefixes(&subset, &w);
+    let cur = p.cv_sse_from(Some(&prefixes), &subset, &w)?;
+    Ok((subset, w, prefixes, cur))
+}
+
+/// The groups [`group_step`] tests: per joint, two or more of its units (one unit alone was
+/// tested as a candidate) — all of them, and, given the single-candidate gains (aligned with
+/// `open`), those that each lowered the joint's held-out error (the rest only add noise to the
+/// group's fit).
+fn joint_groups<'a>(
+    open: &[&'a [Term]],
+    collinear: &[String],
+    gains: Option<&[f64]>,
+) -> Vec<Vec<&'a [Term]>> {
     let mut joints: Vec<usize> = open.iter().map(|u| u[0].joint).collect();
     joints.sort_unstable();
     joints.dedup();
-    // A group is two or more of a joint's units (one unit alone was tested as a candidate): all
-    // of them, and, given the single-candidate gains, those that each lowered the joint's held-out
-    // error (the rest only add noise to the group's fit).
     let mut groups: Vec<Vec<&[Term]>> = Vec::new();
     for &j in &joints {
         let all: Vec<(usize, &[Term])> = open
@@ -418,6 +411,28 @@ fn group_step(
             groups.push(all.into_iter().map(|(_, u)| u).collect());
         }
     }
+    groups
+}
+
+/// When no single candidate passes: effects that only show together on one joint (an offset with
+/// a spring, rotor inertia with an offset: each alone is partly absorbed by the rigid-body
+/// columns). For each joint, all its open candidates are added at once and the joint's held-out
+/// error is tested as for one candidate (Bonferroni over the joints tried). A passing group is
+/// then pruned backwards: every member must pass the single-candidate test as the *last* one
+/// added to the model with the others (the weakest failing member is dropped, and the rest
+/// re-tested), so a group never brings in a term that could not stand on its own at the end.
+/// Returns the members kept, each with its evidence as the last one added. `family` is the
+/// number of candidates the pruning's single-candidate tests are corrected for.
+fn group_step(
+    p: &Problem,
+    terms: &[Term],
+    (open, family): (&[&[Term]], usize),
+    (collinear, gains): (&[String], Option<&[f64]>),
+    (w, cur, prefixes): (&[f64], &[Vec<f64>], &[Prefix]),
+    rules: &Rules,
+) -> Result<Option<Vec<Evidence>>, RankError> {
+    let blocks = p.blocks();
+    let groups = joint_groups(open, collinear, gains);
     if groups.is_empty() {
         return Ok(None);
     }
