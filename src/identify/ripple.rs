@@ -18,7 +18,7 @@ use super::prepare::{cores, Prepared};
 use super::problem::{with_hint, Problem};
 use super::rows::Rows;
 use super::select::{
-    chain_stages, joint_group, select, select_units, Rules, Selected, Selection, Step,
+    accept, chain_stages, joint_group, select, select_units, Rules, Selected, Selection,
 };
 use super::{Config, IdentifyError};
 use crate::effects::{Effect, EffectsSpec, Term};
@@ -411,15 +411,8 @@ fn with_joint_groups(
         if !group.iter().any(|e| e.term.effect.is_ripple()) {
             return Ok(());
         }
-        for mut ev in group {
-            ev.accepted = true;
-            second.terms.push(ev.term);
-            second.steps.push(Step {
-                added: ev.term,
-                label: ev.term.label(),
-                model: second.terms.iter().map(Term::label).collect(),
-                evidence: ev,
-            });
+        for ev in group {
+            accept(&mut second.terms, &mut second.steps, ev.term, ev);
         }
     }
 }

@@ -183,13 +183,8 @@ pub fn select_units(
     let blocks = p.blocks();
     for _ in 0..rules.max_steps {
         let (subset, w, prefixes, cur) = fitted(p, &terms)?;
-        let open_units: Vec<&[Term]> = units
-            .iter()
-            .filter(|u| !u.is_empty() && !u.iter().all(|c| terms.contains(c)))
-            .map(Vec::as_slice)
-            .collect();
-        let open: Vec<Term> = open_units.iter().flat_map(|u| u.iter().copied()).collect();
-        if open.is_empty() || blocks < 3 {
+        let open_units = open_units(units, &terms);
+        if open_units.is_empty() || blocks < 3 {
             break;
         }
         let m = open_units.len() as f64;
@@ -232,23 +227,15 @@ pub fn select_units(
             }
         }
         match best_pass {
-            Some(mut b) => {
-                b.accepted = true;
+            Some(b) => {
                 let unit = open_units
                     .iter()
                     .find(|u| u[0] == b.term)
                     .map_or(&[][..], |u| &u[..]);
                 for &t in unit {
-                    if terms.contains(&t) {
-                        continue;
+                    if !terms.contains(&t) {
+                        accept(&mut terms, &mut steps, t, b.clone());
                     }
-                    terms.push(t);
-                    steps.push(Step {
-                        added: t,
-                        label: t.label(),
-                        model: terms.iter().map(Term::label).collect(),
-                        evidence: b.clone(),
-                    });
                 }
             }
             None => match group_step(
@@ -260,15 +247,8 @@ pub fn select_units(
                 rules,
             )? {
                 Some(group) => {
-                    for mut ev in group {
-                        ev.accepted = true;
-                        terms.push(ev.term);
-                        steps.push(Step {
-                            added: ev.term,
-                            label: ev.term.label(),
-                            model: terms.iter().map(Term::label).collect(),
-                            evidence: ev,
-                        });
+                    for ev in group {
+                        accept(&mut terms, &mut steps, ev.term, ev);
                     }
                 }
                 None => {
@@ -346,11 +326,7 @@ pub(super) fn joint_group(
         return Ok(None);
     }
     let (_, w, prefixes, cur) = fitted(p, terms)?;
-    let open: Vec<&[Term]> = units
-        .iter()
-        .filter(|u| !u.is_empty() && !u.iter().all(|c| terms.contains(c)))
-        .map(Vec::as_slice)
-        .collect();
+    let open = open_units(units, terms);
     group_step(
         p,
         terms,
@@ -359,6 +335,28 @@ pub(super) fn joint_group(
         (&w, &cur, &prefixes),
         rules,
     )
+}
+
+/// The units of `units` not all in the model `terms` yet.
+fn open_units<'a>(units: &'a [Vec<Term>], terms: &[Term]) -> Vec<&'a [Term]> {
+    units
+        .iter()
+        .filter(|u| !u.is_empty() && !u.iter().all(|c| terms.contains(c)))
+        .map(Vec::as_slice)
+        .collect()
+}
+
+/// Adds `t` to the model `terms`, with its step (the model after it) on the evidence `ev` (a
+/// unit's, for each of its terms).
+pub(super) fn accept(terms: &mut Vec<Term>, steps: &mut Vec<Step>, t: Term, mut ev: Evidence) {
+    ev.accepted = true;
+    terms.push(t);
+    steps.push(Step {
+        added: t,
+        label: t.label(),
+        model: terms.iter().map(Term::label).collect(),
+        evidence: ev,
+    });
 }
 
 /// The held-out state of the model `terms`: its columns, weights, leave-one-block-out QR
