@@ -28,6 +28,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import re
 import subprocess
 import sys
 import tempfile
@@ -392,6 +393,12 @@ def ripple_kind(effect: str) -> str:
     return "ripple" if effect in ("ripple_sin", "ripple_cos") else effect
 
 
+def label_term(label: str) -> str:
+    """A report label (`offset3`, `ripple_sin2`, `run_offset3@2`) as the suite's term (`ripple2`, `run_offset3`)."""
+    m = re.fullmatch(r"([a-z_]+?)(\d+)(@.*)?", label)
+    return f"{ripple_kind(m.group(1))}{m.group(2)}" if m else label
+
+
 def identify(dynid: str, arm: str, runs: list[Path], out: Path, extra: list[str]) -> dict:
     cmd = [dynid, "identify", "--arm", arm, "--data", str(runs[0]), "--data", str(runs[1])]
     cmd += ["--validate", str(runs[2]), "--out", str(out), "--physical", "off", *extra]
@@ -407,6 +414,8 @@ def identify(dynid: str, arm: str, runs: list[Path], out: Path, extra: list[str]
         # Terms the per-joint guard added to the model (0-based joints in `selection`).
         "guarded": sorted({f"{ripple_kind(t['effect'])}{t['joint'] + 1}" for t in r["selection"].get("guarded", [])}),
         "not_identifiable": sorted(m["effect"] for m in r["not_identifiable"]),
+        # Candidates the data cannot tell apart from the selected model (their column is in its span).
+        "collinear": sorted({label_term(t) for t in r["selection"].get("collinear", [])}),
         "cutoff_hz": r["data"]["train"][0]["derivative"]["cutoff_hz"],
         "seconds": secs,
     }
@@ -478,7 +487,10 @@ def score(cases: list[dict]) -> dict:
         seconds.append(a["seconds"])
         n = len(c["spec"]["kinds"])
         shares, allowed = library_truth(c["effects"])
-        hidden = set(a.get("not_identifiable", []))
+        # Neither a miss nor a hit: a term no data tells from the rigid body (`not_identifiable`), or this data
+        # from the selected model (`collinear`: an offset beside the rotor inertia and mass of a vertical
+        # prismatic joint — the model already has its column).
+        hidden = set(a.get("not_identifiable", [])) | set(a.get("collinear", []))
         for e in library_kinds():
             for j in range(1, n + 1):
                 term = f"{e}{j}"
@@ -552,6 +564,18 @@ def score(cases: list[dict]) -> dict:
     return out
 
 
+def json_safe(x):
+    """`x` with NaN and infinities as null: JSON has no such numbers (a ratio to the oracle is NaN when every fit of
+    the true effects failed, e.g. rank-deficient on the case's motion)."""
+    if isinstance(x, dict):
+        return {k: json_safe(v) for k, v in x.items()}
+    if isinstance(x, list):
+        return [json_safe(v) for v in x]
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    return x
+
+
 def markdown(s: dict, args: argparse.Namespace) -> str:
     lines = [
         f"Cases {s['cases']} (seeds {args.first_seed}..{args.first_seed + args.cases - 1}"
@@ -590,7 +614,7 @@ def markdown(s: dict, args: argparse.Namespace) -> str:
 
 def write_summary(summary: dict, a: argparse.Namespace) -> None:
     """OUT/summary.json and OUT/summary.md, and the tables on stdout."""
-    (a.out / "summary.json").write_text(json.dumps(summary, indent=1))
+    (a.out / "summary.json").write_text(json.dumps(json_safe(summary), indent=1))
     md = markdown(summary, a)
     (a.out / "summary.md").write_text(md)
     print(md)
@@ -641,7 +665,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"case {spec['seed']}: {spec['arm']}, truth {c['truth']}, found {au.get('found')}: {status}")
     summary = score(cases)
     summary["wall_seconds"] = time.perf_counter() - start
-    (a.out / "cases.json").write_text(json.dumps(cases, indent=1))
+    (a.out / "cases.json").write_text(json.dumps(json_safe(cases), indent=1))
     write_summary(summary, a)
     print(f"wall time {summary['wall_seconds']:.0f} s")
     return 0

@@ -374,18 +374,22 @@ fn fitted(p: &Problem, terms: &[Term]) -> Result<Fitted, RankError> {
 /// The groups [`group_step`] tests: per joint, two or more of its units (one unit alone was
 /// tested as a candidate) — all of them, and, given the single-candidate gains (aligned with
 /// `open`), those that each lowered the joint's held-out error (the rest only add noise to the
-/// group's fit).
+/// group's fit). Units come in order of falling gain, and a unit this data cannot tell apart from
+/// the model `terms` and the units before it is left out (an offset and rotor inertia on a
+/// vertical prismatic joint whose mass shows in no other joint: with the mass, either spans the
+/// joint's constant and its q̈, so both together are singular).
 fn joint_groups<'a>(
+    p: &Problem,
+    terms: &[Term],
     open: &[&'a [Term]],
-    collinear: &[String],
-    gains: Option<&[f64]>,
+    (collinear, gains): (&[String], Option<&[f64]>),
 ) -> Vec<Vec<&'a [Term]>> {
     let mut joints: Vec<usize> = open.iter().map(|u| u[0].joint).collect();
     joints.sort_unstable();
     joints.dedup();
     let mut groups: Vec<Vec<&[Term]>> = Vec::new();
     for &j in &joints {
-        let all: Vec<(usize, &[Term])> = open
+        let mut all: Vec<(usize, &[Term])> = open
             .iter()
             .copied()
             .enumerate()
@@ -396,20 +400,38 @@ fn joint_groups<'a>(
             })
             .collect();
         if let Some(g) = gains {
+            all.sort_by(|a, b| g[b.0].total_cmp(&g[a.0]));
             let helpful: Vec<&[Term]> = all
                 .iter()
                 .filter(|(i, _)| g[*i] > 0.0)
                 .map(|&(_, u)| u)
                 .collect();
+            let helpful = separable(p, terms, helpful);
             if helpful.len() >= 2 && helpful.len() < all.len() {
                 groups.push(helpful);
             }
         }
-        if all.len() >= 2 {
-            groups.push(all.into_iter().map(|(_, u)| u).collect());
+        let all = separable(p, terms, all.into_iter().map(|(_, u)| u).collect());
+        if all.len() >= 2 && !groups.contains(&all) {
+            groups.push(all);
         }
     }
     groups
+}
+
+/// `units` without those whose columns this data cannot tell apart from the model `terms` and
+/// the units before them.
+fn separable<'a>(p: &Problem, terms: &[Term], units: Vec<&'a [Term]>) -> Vec<&'a [Term]> {
+    let mut with = terms.to_vec();
+    with.extend(units.iter().flat_map(|u| u.iter().copied()));
+    let kept = p.independent(&p.subset(&with));
+    units
+        .into_iter()
+        .filter(|u| {
+            u.iter()
+                .all(|t| p.layout.col(t).is_some_and(|c| kept.contains(&c)))
+        })
+        .collect()
 }
 
 /// When no single candidate passes: effects that only show together on one joint (an offset with
@@ -430,7 +452,7 @@ fn group_step(
     rules: &Rules,
 ) -> Result<Option<Vec<Evidence>>, RankError> {
     let blocks = p.blocks();
-    let groups = joint_groups(open, collinear, gains);
+    let groups = joint_groups(p, terms, open, (collinear, gains));
     if groups.is_empty() {
         return Ok(None);
     }

@@ -178,6 +178,50 @@ fn extended_suite_finds_a_ripple_beside_its_joints_other_effects() {
     }
 }
 
+/// Seed 36: a SCARA's vertical prismatic joint 3 with Coulomb friction, rotor inertia, an offset,
+/// asymmetric Coulomb friction and a drift, its mass seen by no other joint. After Coulomb
+/// friction no single term passes; the joint's group must leave out one of the offset and the
+/// rotor inertia (with the mass, either spans the joint's constant and q̈, so both together are
+/// singular) instead of failing as a whole. One of them is found and the other reported
+/// collinear with the model, and the drift is found; nothing is invented on the other joints.
+#[test]
+fn extended_suite_tests_a_group_without_its_collinear_member() {
+    let (s, cases) = suite(&[
+        "--cases",
+        "1",
+        "--first-seed",
+        "36",
+        "--quick",
+        "--extended",
+    ]);
+    assert_eq!(s["failed"], 0, "{s}");
+    let c = &cases[0];
+    let (truth, got) = truth_and_found(c, "drift");
+    assert_eq!(truth, vec!["drift3"], "the seed changed: {c}");
+    assert_eq!(got, truth, "{c}");
+    let got = found(c);
+    let collinear: Vec<&str> = c["auto"]["collinear"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_str().unwrap())
+        .collect();
+    let pair = ["offset3", "armature3"];
+    assert_eq!(
+        pair.iter().filter(|t| got.iter().any(|f| f == *t)).count(),
+        1,
+        "one of {pair:?} found: {got:?}"
+    );
+    assert!(
+        pair.iter().any(|t| collinear.contains(t)),
+        "the other collinear: {collinear:?}"
+    );
+    assert!(
+        got.iter().all(|f| f.ends_with('3')),
+        "only joint 3: {got:?}"
+    );
+}
+
 /// A case's terms of effect `kind` (`drift3`, …): those drawn in truth, and those found by the
 /// library's effect of the same name.
 fn truth_and_found(c: &serde_json::Value, kind: &str) -> (Vec<String>, Vec<String>) {
