@@ -292,7 +292,11 @@ pub(super) fn chain_stages(
         }
     }
     let mut collinear = first.collinear;
-    collinear.extend(second.collinear);
+    for c in second.collinear {
+        if !collinear.contains(&c) {
+            collinear.push(c);
+        }
+    }
     let mut gone = first.dropped;
     gone.extend(dropped.iter().map(Term::label));
     Selected {
