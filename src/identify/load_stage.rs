@@ -6,7 +6,7 @@ use super::base::BaseModel;
 use super::layout::Layout;
 use super::prepare::Prepared;
 use super::problem::{with_hint, Problem};
-use super::select::{chain_stages, select, Rules, Selected};
+use super::select::{add_collinear, chain_stages, select, Rules, Selected};
 use super::{Config, IdentifyError, RankError};
 use crate::effects::{Effect, EffectsSpec, Term};
 
@@ -105,7 +105,7 @@ pub(super) fn load_stage(
     let mut second = select(&p2, &start, &search, &cfg.rules)?;
     if fixed.is_empty() && second.steps.is_empty() {
         let mut first = first;
-        first.collinear.extend(second.collinear);
+        add_collinear(&mut first.collinear, second.collinear);
         // Why the second stage stopped is the last word if it had the better candidate.
         if let Some(s) = second.stopped_on {
             if first

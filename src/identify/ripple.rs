@@ -18,7 +18,8 @@ use super::prepare::{cores, Prepared};
 use super::problem::{with_hint, Problem};
 use super::rows::Rows;
 use super::select::{
-    accept, chain_stages, joint_group, select, select_units, Rules, Selected, Selection,
+    accept, add_collinear, chain_stages, joint_group, select, select_units, Rules, Selected,
+    Selection,
 };
 use super::{Config, IdentifyError};
 use crate::effects::{Effect, EffectsSpec, Term};
@@ -338,7 +339,7 @@ pub(super) fn ripple_stage(
     with_joint_groups(&p2, &mut second, &search, searched, &cfg.rules)?;
     if fixed.is_empty() && second.steps.is_empty() {
         let mut first = first;
-        first.collinear.extend(second.collinear);
+        add_collinear(&mut first.collinear, second.collinear);
         return Ok((
             Selected {
                 problem,
@@ -353,7 +354,7 @@ pub(super) fn ripple_stage(
         // most of all): with it in the model, the first stage's candidates are searched again.
         let again = select(&p2, &second.terms, searched, &cfg.rules)?;
         second.steps.extend(again.steps);
-        second.collinear.extend(again.collinear);
+        add_collinear(&mut second.collinear, again.collinear);
         second.terms = again.terms;
         second.stopped_on = again.stopped_on;
     }

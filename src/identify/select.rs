@@ -202,11 +202,7 @@ pub fn select_units(
             .collect();
         for (&u, ev) in open_units.iter().zip(found) {
             let Some(ev) = ev else {
-                for c in u {
-                    if !collinear.contains(&c.label()) {
-                        collinear.push(c.label());
-                    }
-                }
+                add_collinear(&mut collinear, u.iter().map(Term::label));
                 continue;
             };
             let passes = ev.t_stat > ev.t_crit
@@ -292,11 +288,7 @@ pub(super) fn chain_stages(
         }
     }
     let mut collinear = first.collinear;
-    for c in second.collinear {
-        if !collinear.contains(&c) {
-            collinear.push(c);
-        }
-    }
+    add_collinear(&mut collinear, second.collinear);
     let mut gone = first.dropped;
     gone.extend(dropped.iter().map(Term::label));
     Selected {
@@ -339,6 +331,16 @@ pub(super) fn joint_group(
         (&w, &cur, &prefixes),
         rules,
     )
+}
+
+/// Appends to a selection's `collinear` list the labels it does not hold yet: a term collinear
+/// in two stages (or two searches of one stage) is listed once.
+pub(super) fn add_collinear(list: &mut Vec<String>, labels: impl IntoIterator<Item = String>) {
+    for l in labels {
+        if !list.contains(&l) {
+            list.push(l);
+        }
+    }
 }
 
 /// The units of `units` not all in the model `terms` yet.
