@@ -13,7 +13,7 @@ fn the_periodogram_peaks_at_the_ripples_wavenumber() {
             .iter()
             .map(|x| 0.2 * (k * x + phase).sin() + 0.3 * rng.gen_range(-1.0..1.0) + 0.5)
             .collect();
-        let p = periodogram_peak(&q, &r, &vec![0; q.len()], K_MIN, K_MAX).unwrap();
+        let p = periodogram_peak((&q, &r, &vec![0; q.len()]), (K_MIN, K_MAX), false).unwrap();
         // Over a range of 2.8 rad the peak's width is ~2π/2.8; the estimate is far inside it.
         assert!((p.k - k).abs() < 0.05, "k {k}: got {}", p.k);
         // Signal variance 0.02 against noise 0.03: share ≈ 0.4.
@@ -33,7 +33,7 @@ fn noise_has_no_strong_peak() {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(8 + seed);
         let q: Vec<f64> = (0..4_000).map(|i| 1.4 * (i as f64 * 0.011).sin()).collect();
         let r: Vec<f64> = q.iter().map(|_| rng.gen_range(-1.0..1.0)).collect();
-        let p = periodogram_peak(&q, &r, &vec![0; q.len()], K_MIN, K_MAX).unwrap();
+        let p = periodogram_peak((&q, &r, &vec![0; q.len()]), (K_MIN, K_MAX), false).unwrap();
         assert!(p.share < 0.02, "seed {seed}: {p:?}");
         passed += usize::from(p.significant());
     }
@@ -51,7 +51,7 @@ fn a_short_range_has_no_significant_noise_peak() {
             .map(|i| 0.12 * (i as f64 * 0.011).sin())
             .collect();
         let r: Vec<f64> = q.iter().map(|_| rng.gen_range(-1.0..1.0)).collect();
-        let p = periodogram_peak(&q, &r, &vec![0; q.len()], K_MIN, K_MAX).unwrap();
+        let p = periodogram_peak((&q, &r, &vec![0; q.len()]), (K_MIN, K_MAX), false).unwrap();
         assert!(!p.significant(), "seed {seed}: {p:?}");
     }
 }
@@ -73,17 +73,17 @@ fn a_per_run_offset_is_not_a_ripple() {
         .zip(&noise)
         .map(|(&g, e)| if g == 0 { 0.5 } else { -0.5 } + e)
         .collect();
-    let p = periodogram_peak(&q, &offset, &run, K_MIN, K_MAX).unwrap();
+    let p = periodogram_peak((&q, &offset, &run), (K_MIN, K_MAX), false).unwrap();
     assert!(p.share < 0.01 && !p.significant(), "{p:?}");
     // Pooled (one run), the offset is a step in q that a low wavenumber fits.
-    let pooled = periodogram_peak(&q, &offset, &vec![0; q.len()], K_MIN, K_MAX).unwrap();
+    let pooled = periodogram_peak((&q, &offset, &vec![0; q.len()]), (K_MIN, K_MAX), false).unwrap();
     assert!(pooled.share > 0.3, "pooled {pooled:?}");
     let with: Vec<f64> = offset
         .iter()
         .zip(&q)
         .map(|(o, x)| o + 0.1 * (5.0 * x).sin())
         .collect();
-    let p = periodogram_peak(&q, &with, &run, K_MIN, K_MAX).unwrap();
+    let p = periodogram_peak((&q, &with, &run), (K_MIN, K_MAX), false).unwrap();
     assert!((p.k - 5.0).abs() < 0.05 && p.significant(), "{p:?}");
 }
 
@@ -92,7 +92,7 @@ fn a_per_run_offset_is_not_a_ripple() {
 fn a_joint_that_hardly_moves_is_not_scanned() {
     let q: Vec<f64> = (0..1000).map(|i| 0.05 * (i as f64 * 0.01).sin()).collect();
     let r: Vec<f64> = q.iter().map(|x| x.sin()).collect();
-    assert!(periodogram_peak(&q, &r, &vec![0; q.len()], K_MIN, K_MAX).is_none());
+    assert!(periodogram_peak((&q, &r, &vec![0; q.len()]), (K_MIN, K_MAX), false).is_none());
 }
 
 /// A planar arm whose second joint's torque has a position ripple of wavenumber `k` (both
@@ -169,4 +169,61 @@ fn the_stage_finds_a_plants_ripple_and_invents_none() {
             out.ripple
         );
     }
+}
+
+/// A ripple whose period is about the joint's range (k = 3.5 and 4.4 rad⁻¹ on the base joint of
+/// a planar arm) is partly a constant and a line there, which an offset and a spring take when
+/// they enter the model first; the periodogram of what they leave then peaks off the ripple's
+/// wavenumber (before this scan: errors up to 1.5 rad⁻¹, median 0.27, and a stand-in kept in 11
+/// of these 16 runs). The stage scans the joint without them and refines `k` by backfitting, and
+/// a stand-in goes back to the test with the ripple in the model.
+#[test]
+fn a_slow_ripple_is_found_at_its_wavenumber_without_stand_ins() {
+    use crate::effects::Scales;
+    use crate::identify::synth::{generate, Spec};
+    use crate::identify::{run, Config};
+    use crate::log::Log;
+    let arm = crate::arms::resolve("planar2").unwrap();
+    let (mut errors, mut stand_ins) = (Vec::new(), 0);
+    for seed in 1..9u64 {
+        for k in [3.5, 4.4] {
+            let mut s = Spec::new(arm.dh_table().unwrap(), seed)
+                .with_effect(Effect::Viscous, 1, 0.3)
+                .with_effect(Effect::RippleSin, 0, 0.3)
+                .with_effect(Effect::RippleCos, 0, 0.25);
+            s.plant_scales = vec![Scales::EXACT.with_ripple(k), Scales::EXACT];
+            let cfg = Config {
+                effects: EffectsSpec::Auto,
+                ..Config::default()
+            };
+            let out = run(&arm, vec![Log::from(generate(&s))], None, &cfg).unwrap();
+            let scan = out
+                .ripple
+                .iter()
+                .find(|s| s.joint == 0)
+                .expect("joint 1 scanned");
+            assert!(scan.accepted, "seed {seed}, k {k}: {:?}", out.ripple);
+            errors.push((scan.k - k).abs());
+            let terms = &out.selection.terms;
+            assert!(
+                !terms
+                    .iter()
+                    .any(|t| t.joint == 0 && t.effect == Effect::Spring),
+                "seed {seed}, k {k}: {terms:?}"
+            );
+            stand_ins += usize::from(
+                terms
+                    .iter()
+                    .any(|t| t.joint == 0 && t.effect == Effect::Offset),
+            );
+        }
+    }
+    errors.sort_by(f64::total_cmp);
+    // Measured: median 0.06, largest 0.38 (an offset kept beside it), offsets in 2 runs.
+    assert!(errors[errors.len() / 2] < 0.1, "{errors:?}");
+    assert!(errors[errors.len() - 1] < 0.5, "{errors:?}");
+    assert!(
+        stand_ins <= 3,
+        "an offset on joint 1 in {stand_ins} of 16 runs"
+    );
 }
