@@ -32,17 +32,8 @@ pub const STILL_M: f64 = 0.005;
 
 /// Warnings about the training data `train` (joint kinds from `table`; revolute without one).
 pub fn warnings(train: &[Prepared], table: Option<&DhTable>, dof: usize) -> Vec<String> {
-    let mut lo = vec![f64::INFINITY; dof];
-    let mut hi = vec![f64::NEG_INFINITY; dof];
-    for p in train {
-        p.log.rows(p.raw_keep.0, p.raw_keep.1, |row| {
-            for j in 0..dof {
-                let q = row[1 + j];
-                lo[j] = lo[j].min(q);
-                hi[j] = hi[j].max(q);
-            }
-        });
-    }
+    let files: Vec<&Prepared> = train.iter().collect();
+    let (lo, hi) = super::extrapolation::ranges(&files, dof);
     let mut out = Vec::new();
     for j in 0..dof {
         let prismatic = table

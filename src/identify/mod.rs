@@ -65,6 +65,7 @@ mod columns;
 pub mod coulomb_width;
 mod dot;
 mod evaluate;
+pub mod extrapolation;
 pub mod guard;
 pub mod identifiability;
 mod jackknife;
@@ -410,6 +411,7 @@ fn run_prepared_with(
         Some(t) => (&t[..train.len()], t.get(train.len()).or(val)),
         None => (train, val),
     };
+    let terms = selected.selection.terms.clone();
     let mut out = outcome::assemble(arm, base, train, val, cfg, selected, &merged)?;
     // The maps' units: those of a prismatic joint where the table says so.
     for m in &mut out.residual_maps.maps {
@@ -419,6 +421,8 @@ fn run_prepared_with(
         m.unit = m.variable.unit(prismatic).to_string();
     }
     out.warnings = identifiability::warnings(train, table, base.dof());
+    out.warnings
+        .extend(extrapolation::warnings(train, val, &terms, base.dof()));
     if let Some(g) = &guard {
         out.warnings.extend(g.weak.iter().map(|w| w.reason.clone()));
         out.warnings.extend(
