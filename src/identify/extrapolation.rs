@@ -3,8 +3,9 @@
 //! position ripple). The rigid-body model extrapolates by its physics; those terms were fitted
 //! only over the training range — a spring's slope may stand in for part of a slow ripple there,
 //! and a ripple's wavenumber is known to a fraction of `2π / range` — so the prediction beyond it
-//! is not what the training data vouch for (extended suite, seed 129: a spring and a ripple fitted
-//! over 2 rad predicted a run reaching 0.7 rad further at 8× the true model's error).
+//! is not what the training data vouch for (extended suite, seed 129, before the ripple stage
+//! fitted the wavenumber: a spring and a ripple fitted over 2 rad predicted a run reaching 0.7 rad
+//! further at 31× the true model's error).
 
 use super::prepare::Prepared;
 use crate::effects::{Effect, Term};

@@ -15,8 +15,9 @@
 //! they leave peaks off the ripple (suite case: k 6.3 for 4.4, the spring then extrapolated to
 //! 31× the oracle's validation error). So the joint is scanned on the residual of the model
 //! without them (beyond a line where the model holds a spring), `k` is refined by backfitting
-//! (with the pair in the model, the joint's partial residual is scanned again), and
-//! once the pair is in, each stand-in must pass the selection test again or it goes.
+//! (with the pair in the model, the joint's partial residual is scanned again) and then fitted
+//! by least squares like the model's other parameters, and once the pair is
+//! in, each stand-in must pass the selection test again or it goes.
 
 use serde::Serialize;
 
@@ -368,6 +369,19 @@ pub(super) fn ripple_stage(
     let samples = scan_residuals(base, train, &selected, &joints).map_err(fail)?;
     let mut scans = scan_joints(&joints, &samples, &fixed, &springs)?;
     refine(base, train, cfg, &selected, &mut scans, &springs).map_err(fail)?;
+    let spans: Vec<(usize, f64)> = joints
+        .iter()
+        .zip(&samples)
+        .map(|(&j, (q, _, _))| {
+            let (lo, hi) = q
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
+                    (a.min(x), b.max(x))
+                });
+            (j, hi - lo)
+        })
+        .collect();
+    least_squares_k(base, train, cfg, &selected, (&mut scans, &spans)).map_err(fail)?;
     let found = |t: &Term| scans.iter().any(|s| s.joint == t.joint);
     // Each joint's sine and cosine are one candidate: the ripple's phase is unknown.
     let search: Vec<Vec<Term>> = match &cfg.effects {
@@ -559,6 +573,97 @@ fn refine(
         }
         if !moved {
             return Ok(());
+        }
+    }
+    Ok(())
+}
+
+/// Golden-section steps of [`least_squares_k`]: the bracket shrinks to 0.618¹⁰ (under 1 %) of its
+/// width.
+const GOLDEN_STEPS: usize = 10;
+
+/// The least-squares wavenumber: each significant scan's `k` moves to the minimum over `k` of the
+/// weighted residual sum of squares of the model with every scanned pair, within half an
+/// independent wavenumber (`π / span` of the joint's positions) either side (golden-section
+/// search, the other joints' `k` held), if that is lower than at the periodogram's `k`. The
+/// periodogram reads a partial residual that the model's other columns still shade; `k` is a
+/// parameter of the model like its coefficients, so it is fitted like them.
+fn least_squares_k(
+    base: &BaseModel,
+    train: &[Prepared],
+    cfg: &Config,
+    selected: &Selected,
+    (scans, spans): (&mut [RippleScan], &[(usize, f64)]),
+) -> Result<(), crate::identify::RankError> {
+    let live: Vec<usize> = (0..scans.len()).filter(|&i| scans[i].significant).collect();
+    if live.is_empty() {
+        return Ok(());
+    }
+    let pairs: Vec<Term> = live
+        .iter()
+        .flat_map(|&i| Effect::RIPPLE.map(|e| Term::new(e, scans[i].joint)))
+        .collect();
+    // With a constant per run on each joint scanned, as the periodogram has: otherwise the
+    // wavenumber bends to fit the per-run offsets the model does not have yet.
+    let files = selected.problem.files();
+    let constants: Vec<Term> = live
+        .iter()
+        .flat_map(|&i| {
+            let j = scans[i].joint;
+            (0..files).map(move |run| match run {
+                0 => Term::new(Effect::Offset, j),
+                run => Term {
+                    effect: Effect::RunOffset,
+                    joint: j,
+                    run,
+                },
+            })
+        })
+        .collect();
+    let mut terms = selected.selection.terms.clone();
+    terms.extend(pairs.iter().chain(&constants));
+    terms.sort();
+    terms.dedup();
+    let extra: Vec<Term> = pairs.iter().chain(&constants).copied().collect();
+    let layout = |s: &[RippleScan]| with_ripple(&selected.problem.layout, s, extra.iter());
+    let p0 = Problem::build(base, layout(scans), train, cfg.blocks);
+    let subset = p0.independent(&p0.subset(&terms));
+    // One weighting for every k, so that the sums compare.
+    let w = p0.weights(&subset)?;
+    let at = |s: &[RippleScan]| {
+        let p = Problem::build(base, layout(s), train, cfg.blocks);
+        p.fit(&subset, &w).map_or(f64::INFINITY, |f| f.wsse)
+    };
+    for i in live {
+        let Some(&(_, span)) = spans.iter().find(|(j, _)| *j == scans[i].joint) else {
+            continue;
+        };
+        let half = std::f64::consts::PI / span;
+        let k0 = scans[i].k;
+        let mut trial = scans.to_vec();
+        let mut sse = |k: f64| {
+            trial[i].k = k;
+            at(&trial)
+        };
+        let f0 = sse(k0);
+        let g = (5f64.sqrt() - 1.0) / 2.0;
+        let (mut a, mut b) = ((k0 - half).max(K_MIN), (k0 + half).min(K_MAX));
+        let (mut c, mut d) = (b - g * (b - a), a + g * (b - a));
+        let (mut fc, mut fd) = (sse(c), sse(d));
+        for _ in 0..GOLDEN_STEPS {
+            if fc < fd {
+                (b, d, fd) = (d, c, fc);
+                c = b - g * (b - a);
+                fc = sse(c);
+            } else {
+                (a, c, fc) = (c, d, fd);
+                d = a + g * (b - a);
+                fd = sse(d);
+            }
+        }
+        let (k, f) = if fc < fd { (c, fc) } else { (d, fd) };
+        if f < f0 {
+            scans[i].k = k;
         }
     }
     Ok(())
