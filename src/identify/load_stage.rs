@@ -6,7 +6,7 @@ use super::base::BaseModel;
 use super::layout::Layout;
 use super::prepare::Prepared;
 use super::problem::{with_hint, Problem};
-use super::select::{add_collinear, chain_stages, select, Rules, Selected};
+use super::select::{add_collinear, chain_stages, passes_again, select, Selected};
 use super::{Config, IdentifyError, RankError};
 use crate::effects::{Effect, EffectsSpec, Term};
 
@@ -126,19 +126,8 @@ pub(super) fn load_stage(
     // the mean of load-dependent friction): each must pass the same test again against the
     // final model without it, or it goes (last added first).
     let mut dropped = Vec::new();
-    let once = Rules {
-        max_steps: 1,
-        ..cfg.rules
-    };
     for s in first.steps.iter().rev() {
-        let without: Vec<Term> = second
-            .terms
-            .iter()
-            .copied()
-            .filter(|t| *t != s.added)
-            .collect();
-        if select(&p2, &without, &[s.added], &once)?.steps.is_empty() {
-            second.terms = without;
+        if !passes_again(&p2, &mut second.terms, s.added, &cfg.rules)? {
             dropped.push(s.added);
         }
     }

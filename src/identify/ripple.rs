@@ -27,8 +27,8 @@ use super::prepare::{cores, Prepared};
 use super::problem::{with_hint, Problem};
 use super::rows::Rows;
 use super::select::{
-    accept, add_collinear, chain_stages, joint_group, select, select_units, Rules, Selected,
-    Selection,
+    accept, add_collinear, chain_stages, joint_group, passes_again, select, select_units, Rules,
+    Selected, Selection,
 };
 use super::{Config, IdentifyError};
 use crate::effects::{Effect, EffectsSpec, Term};
@@ -492,24 +492,13 @@ fn drop_stand_ins(
     rules: &Rules,
 ) -> Result<Vec<Term>, IdentifyError> {
     let mut dropped = Vec::new();
-    let once = Rules {
-        max_steps: 1,
-        ..*rules
-    };
     for s in first.steps.iter().rev() {
         let j = s.added.joint;
         let rippled = |t: &Term| t.effect.is_ripple() && t.joint == j;
         if !stand_in(&s.added, j) || !second.terms.iter().any(rippled) {
             continue;
         }
-        let without: Vec<Term> = second
-            .terms
-            .iter()
-            .copied()
-            .filter(|t| *t != s.added)
-            .collect();
-        if select(p2, &without, &[s.added], &once)?.steps.is_empty() {
-            second.terms = without;
+        if !passes_again(p2, &mut second.terms, s.added, rules)? {
             dropped.push(s.added);
         }
     }
@@ -520,6 +509,16 @@ fn drop_stand_ins(
 /// which these take when they enter the model before it.
 fn stand_in(t: &Term, j: usize) -> bool {
     t.joint == j && matches!(t.effect, Effect::Spring | Effect::Offset)
+}
+
+/// The significant scans' indices and their joints' ripple pairs.
+fn significant_pairs(scans: &[RippleScan]) -> (Vec<usize>, Vec<Term>) {
+    let live: Vec<usize> = (0..scans.len()).filter(|&i| scans[i].significant).collect();
+    let pairs = live
+        .iter()
+        .flat_map(|&i| Effect::RIPPLE.map(|e| Term::new(e, scans[i].joint)))
+        .collect();
+    (live, pairs)
 }
 
 /// Scans of the pair's wavenumber by backfitting (at most this many per joint): the rigid-body
@@ -538,14 +537,10 @@ fn refine(
     springs: &[usize],
 ) -> Result<(), crate::identify::RankError> {
     for _ in 0..REFINE_ROUNDS {
-        let live: Vec<usize> = (0..scans.len()).filter(|&i| scans[i].significant).collect();
+        let (live, pairs) = significant_pairs(scans);
         if live.is_empty() {
             return Ok(());
         }
-        let pairs: Vec<Term> = live
-            .iter()
-            .flat_map(|&i| Effect::RIPPLE.map(|e| Term::new(e, scans[i].joint)))
-            .collect();
         let layout = with_ripple(&selected.problem.layout, scans, pairs.iter());
         let p = Problem::build(base, layout, train, cfg.blocks);
         let mut terms = selected.selection.terms.clone();
@@ -595,14 +590,10 @@ fn least_squares_k(
     selected: &Selected,
     (scans, spans): (&mut [RippleScan], &[(usize, f64)]),
 ) -> Result<(), crate::identify::RankError> {
-    let live: Vec<usize> = (0..scans.len()).filter(|&i| scans[i].significant).collect();
+    let (live, pairs) = significant_pairs(scans);
     if live.is_empty() {
         return Ok(());
     }
-    let pairs: Vec<Term> = live
-        .iter()
-        .flat_map(|&i| Effect::RIPPLE.map(|e| Term::new(e, scans[i].joint)))
-        .collect();
     // With a constant per run on each joint scanned, as the periodogram has: otherwise the
     // wavenumber bends to fit the per-run offsets the model does not have yet.
     let files = selected.problem.files();

@@ -265,6 +265,27 @@ pub fn select_units(
     })
 }
 
+/// Whether `t`, one of `terms`, still passes the selection test as the last one added (one step
+/// of [`select`] on the model without it); if not, it leaves `terms`. For a first-stage term a
+/// later stage's effect may have stood in for.
+pub(super) fn passes_again(
+    p: &Problem,
+    terms: &mut Vec<Term>,
+    t: Term,
+    rules: &Rules,
+) -> Result<bool, RankError> {
+    let once = Rules {
+        max_steps: 1,
+        ..*rules
+    };
+    let without: Vec<Term> = terms.iter().copied().filter(|&o| o != t).collect();
+    if select(p, &without, &[t], &once)?.steps.is_empty() {
+        *terms = without;
+        return Ok(false);
+    }
+    Ok(true)
+}
+
 /// The selection of two stages run one after the other, on `problem` (the second stage's):
 /// `first`'s steps, then `second`'s, each step's `model` the declared terms, `fixed` (declared for
 /// the second stage) and the steps up to it, leaving out the steps that added a `dropped` term.
