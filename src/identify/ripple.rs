@@ -97,7 +97,9 @@ const BACKGROUND_HALF_WIDTH: f64 = 8.0;
 /// squares, everything centred within each `run` (a constant per run — a sensor re-zeroed between
 /// runs — is not a ripple), with the share of `r`'s within-run variance they explain and how far
 /// it stands out of its neighbours ([`Peak`]); `None` when `q` spans less than one period of
-/// `k_hi` or `r` is constant within runs.
+/// `k_hi` or `r` is constant within runs. With `line` (the joint's model holds a spring) the pair's
+/// power is measured beyond a line in `q` too: `r` and the pair taken orthogonal to `q` centred
+/// within each run.
 pub fn periodogram_peak(
     (q, r, run): (&[f64], &[f64], &[usize]),
     (k_lo, k_hi): (f64, f64),
