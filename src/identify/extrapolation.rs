@@ -36,13 +36,9 @@ fn position_shaped(t: &Term) -> bool {
 }
 
 /// One warning per joint of `terms`' position-shaped terms that the validation file `val` takes
-/// more than [`MARGIN`] of its training span beyond the training files' range.
-pub fn warnings(
-    train: &[Prepared],
-    val: Option<&Prepared>,
-    terms: &[Term],
-    dof: usize,
-) -> Vec<String> {
+/// more than [`MARGIN`] of its training span beyond the training files' range (`lo`, `hi`:
+/// [`ranges`] of the training files).
+pub fn warnings((lo, hi): (&[f64], &[f64]), val: Option<&Prepared>, terms: &[Term]) -> Vec<String> {
     let Some(val) = val else {
         return Vec::new();
     };
@@ -56,9 +52,7 @@ pub fn warnings(
     if joints.is_empty() {
         return Vec::new();
     }
-    let files: Vec<&Prepared> = train.iter().collect();
-    let (lo, hi) = ranges(&files, dof);
-    let (vlo, vhi) = ranges(&[val], dof);
+    let (vlo, vhi) = ranges(&[val], lo.len());
     joints
         .into_iter()
         .filter(|&j| {

@@ -11,7 +11,6 @@
 
 use serde::Serialize;
 
-use super::prepare::Prepared;
 use super::problem::Problem;
 use crate::dh::{DhTable, JointKind};
 
@@ -30,12 +29,12 @@ pub const STILL_RAD: f64 = 0.05;
 /// Least span of a prismatic joint's position (m).
 pub const STILL_M: f64 = 0.005;
 
-/// Warnings about the training data `train` (joint kinds from `table`; revolute without one).
-pub fn warnings(train: &[Prepared], table: Option<&DhTable>, dof: usize) -> Vec<String> {
-    let files: Vec<&Prepared> = train.iter().collect();
-    let (lo, hi) = super::extrapolation::ranges(&files, dof);
+/// Warnings about the training data, from each joint's least and greatest position over the
+/// training files (`lo`, `hi`: [`super::extrapolation::ranges`]; joint kinds from `table`,
+/// revolute without one).
+pub fn warnings((lo, hi): (&[f64], &[f64]), table: Option<&DhTable>) -> Vec<String> {
     let mut out = Vec::new();
-    for j in 0..dof {
+    for j in 0..lo.len() {
         let prismatic = table
             .and_then(|t| t.joints.get(j))
             .is_some_and(|jt| jt.kind == JointKind::Prismatic);

@@ -420,9 +420,12 @@ fn run_prepared_with(
             .is_some_and(|jt| jt.kind == crate::dh::JointKind::Prismatic);
         m.unit = m.variable.unit(prismatic).to_string();
     }
-    out.warnings = identifiability::warnings(train, table, base.dof());
+    // Each joint's position range over the training files (one pass over them), for both.
+    let files: Vec<&Prepared> = train.iter().collect();
+    let (lo, hi) = extrapolation::ranges(&files, base.dof());
+    out.warnings = identifiability::warnings((&lo, &hi), table);
     out.warnings
-        .extend(extrapolation::warnings(train, val, &terms, base.dof()));
+        .extend(extrapolation::warnings((&lo, &hi), val, &terms));
     if let Some(g) = &guard {
         out.warnings.extend(g.weak.iter().map(|w| w.reason.clone()));
         out.warnings.extend(

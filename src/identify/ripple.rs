@@ -109,12 +109,7 @@ pub fn periodogram_peak(
     if n < 8 {
         return None;
     }
-    let (lo, hi) = q[..n]
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
-            (a.min(x), b.max(x))
-        });
-    let range = hi - lo;
+    let range = span(&q[..n]);
     let k_lo = k_lo.max(std::f64::consts::TAU / range);
     if !(range.is_finite() && k_lo < k_hi) {
         return None;
@@ -216,6 +211,16 @@ pub fn periodogram_peak(
         prominence,
         tested: (k_hi - k_lo) / independent,
     })
+}
+
+/// Greatest minus least of `q` (−∞ when empty).
+fn span(q: &[f64]) -> f64 {
+    let (lo, hi) = q
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
+            (a.min(x), b.max(x))
+        });
+    hi - lo
 }
 
 /// Sum of squares of `r` (centred within each run) that `sin(kq)`, `cos(kq)`, centred within
@@ -374,14 +379,7 @@ pub(super) fn ripple_stage(
     let spans: Vec<(usize, f64)> = joints
         .iter()
         .zip(&samples)
-        .map(|(&j, (q, _, _))| {
-            let (lo, hi) = q
-                .iter()
-                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
-                    (a.min(x), b.max(x))
-                });
-            (j, hi - lo)
-        })
+        .map(|(&j, (q, _, _))| (j, span(q)))
         .collect();
     least_squares_k(base, train, cfg, &selected, (&mut scans, &spans)).map_err(fail)?;
     let found = |t: &Term| scans.iter().any(|s| s.joint == t.joint);
@@ -623,6 +621,8 @@ fn least_squares_k(
     let subset = p0.independent(&p0.subset(&terms));
     // One weighting for every k, so that the sums compare.
     let w = p0.weights(&subset)?;
+    // The sum at the scans' current wavenumbers (the next joint's starting point).
+    let mut current = p0.fit(&subset, &w).map_or(f64::INFINITY, |f| f.wsse);
     let at = |s: &[RippleScan]| {
         let p = Problem::build(base, layout(s), train, cfg.blocks);
         p.fit(&subset, &w).map_or(f64::INFINITY, |f| f.wsse)
@@ -638,7 +638,7 @@ fn least_squares_k(
             trial[i].k = k;
             at(&trial)
         };
-        let f0 = sse(k0);
+        let f0 = current;
         let g = (5f64.sqrt() - 1.0) / 2.0;
         let (mut a, mut b) = ((k0 - half).max(K_MIN), (k0 + half).min(K_MAX));
         let (mut c, mut d) = (b - g * (b - a), a + g * (b - a));
@@ -657,6 +657,7 @@ fn least_squares_k(
         let (k, f) = if fc < fd { (c, fc) } else { (d, fd) };
         if f < f0 {
             scans[i].k = k;
+            current = f;
         }
     }
     Ok(())
