@@ -184,6 +184,7 @@ pub fn json_report(o: &Outcome, command: &str) -> Value {
                     "t_stat": s.evidence.t_stat,
                     "t_crit": s.evidence.t_crit,
                     "partial_corr": s.evidence.partial_corr,
+                    "coefficient": s.evidence.coefficient.map(|c| json!({"z": c.z, "z_crit": c.z_crit, "test": "asym_coulomb on a joint whose model holds coulomb: |coefficient| / block-jackknife sigma, fitted with the model and the joint's offset, two-sided, Bonferroni over the joints tested, family 1 %; added when it also passes the gain and torque-share rules"})),
                     "test": "leave-one-block-out held-out error; one-sided t-test on per-block log ratios of the joint's held-out error, each capped at ±ln 4 (Bonferroni, family 1 %), gain >= 1 % of the joint's held-out residual variance and >= 1e-6 of its torque power",
                 }
             })
@@ -452,7 +453,7 @@ fn evidence_section(m: &mut String, o: &Outcome) {
     let _ = writeln!(m, "## Evidence for each effect added\n");
     let _ = writeln!(
         m,
-        "Each candidate (effect, joint) is judged on held-out time blocks ({} blocks; each block predicted by a fit on the others): added only if a one-sided t-test on the per-block log ratios of the joint's held-out error (each capped at ±ln 4) passes (Bonferroni over the candidates, family level 1 %), it removes ≥ 1 % of the joint's held-out residual variance and explains ≥ 1e-6 of its torque power.\n",
+        "Each candidate (effect, joint) is judged on held-out time blocks ({} blocks; each block predicted by a fit on the others): added only if a one-sided t-test on the per-block log ratios of the joint's held-out error (each capped at ±ln 4) passes (Bonferroni over the candidates, family level 1 %), it removes ≥ 1 % of the joint's held-out residual variance and explains ≥ 1e-6 of its torque power. `asym_coulomb` on a joint whose model holds `coulomb` is also tested on its coefficient (`coefficient z`: |x| / block-jackknife σ, fitted with the model and the joint's offset, Bonferroni over those joints): its evidence sits in the few blocks with rests.\n",
         o.blocks
     );
     let _ = writeln!(
@@ -462,14 +463,16 @@ fn evidence_section(m: &mut String, o: &Outcome) {
     let _ = writeln!(m, "|---|---|---|---|---|");
     for (i, s) in o.selection.steps.iter().enumerate() {
         let e = &s.evidence;
+        let test = match e.coefficient {
+            Some(c) => format!("coefficient z {:.2} / {:.2}", c.z, c.z_crit),
+            None => format!("{:.1} / {:.1}", e.t_stat, e.t_crit),
+        };
         let _ = writeln!(
             m,
-            "| {} | `{}` | {} | {:.1} / {:.1} | {:.3} |",
+            "| {} | `{}` | {} | {test} | {:.3} |",
             i + 1,
             s.label,
             pct(e.heldout_gain),
-            e.t_stat,
-            e.t_crit,
             e.partial_corr
         );
     }

@@ -365,19 +365,10 @@ impl<'a> Ctx<'a> {
     fn coef_z(&self, terms: &[Term], extra: Term) -> Result<f64, RankError> {
         let mut with = terms.to_vec();
         with.push(extra);
-        let subset = self.p.subset(&with);
-        let Some(k) = self
-            .p
-            .layout
-            .col(&extra)
-            .and_then(|c| subset.iter().position(|&s| s == c))
-        else {
-            return Ok(0.0);
-        };
-        let w = self.p.weights(&subset)?;
-        let x = self.p.fit(&subset, &w)?.x[k];
-        let sd = jackknife::std(&self.p.loo_fits(&subset, &w)?, subset.len())[k];
-        Ok(if sd > 0.0 { x.abs() / sd } else { 0.0 })
+        match self.p.layout.col(&extra) {
+            Some(col) => jackknife::coefficient_z(self.p, &self.p.subset(&with), col),
+            None => Ok(0.0),
+        }
     }
 
     /// The plain terms for which `pick` holds that `terms` lacks, less those this data cannot

@@ -2,6 +2,21 @@
 //! scaled by `(B − 1) / B`. Honest when the residuals are correlated within a block (filtered
 //! torque is), which the least-squares covariance is not.
 
+use super::problem::Problem;
+use super::RankError;
+
+/// `|x| / σ` of the coefficient of column `col` in the weighted fit of the columns `subset`
+/// (`col` among them), σ from the block jackknife of that fit; 0 when σ is 0.
+pub(super) fn coefficient_z(p: &Problem, subset: &[usize], col: usize) -> Result<f64, RankError> {
+    let Some(k) = subset.iter().position(|&s| s == col) else {
+        return Ok(0.0);
+    };
+    let w = p.weights(subset)?;
+    let x = p.fit(subset, &w)?.x[k];
+    let sd = std(&p.loo_fits(subset, &w)?, subset.len())[k];
+    Ok(if sd > 0.0 { x.abs() / sd } else { 0.0 })
+}
+
 /// Standard deviations of the first `k` parameters of the leave-one-block-out fits `loo` (one
 /// parameter vector per block); NaN with fewer than two blocks.
 pub(super) fn std(loo: &[Vec<f64>], k: usize) -> Vec<f64> {

@@ -44,6 +44,8 @@
 //!    more, a per-run offset is a column per run: [`crate::effects::Run`]); position ripple
 //!    ([`ripple`]: a wavenumber per joint from the residual's periodogram, then the pair
 //!    searched, and the first stage's candidates again on top of an accepted pair);
+//!    asymmetric Coulomb friction beside a joint's Coulomb friction also on its coefficient
+//!    (`asym_stage.rs`: its evidence sits at the rests, in a few held-out blocks);
 //!    load-dependent effects
 //!    ([`Effect::LOADED`](crate::effects::Effect::LOADED)) in a second stage on top of the first
 //!    stage's model (`load_stage.rs`: their columns hold its torque, so the layout and problem
@@ -60,6 +62,7 @@
 //!    standard deviations from a block jackknife over the time blocks (honest under the
 //!    residual autocorrelation that filtering creates), reported also as %σ = 100·σ/|θ|.
 
+mod asym_stage;
 pub mod base;
 mod columns;
 pub mod coulomb_width;
@@ -383,6 +386,7 @@ fn run_prepared_with(
     let first = select::first_stage(problem, train, cfg, declared, &searched)?;
     let skip: Vec<usize> = weak.iter().map(|w| w.joint).collect();
     let (first, ripple_scans) = ripple::ripple_stage(base, train, cfg, first, (&skip, &searched))?;
+    let first = asym_stage::asym_stage(cfg, first, &searched)?;
     let selected = load_stage(base, train, cfg, first)?;
     let (selected, width_scan) = match cfg.coulomb_width {
         None => coulomb_width::choose_width(base, (train, grids), cfg.blocks, selected, &skip),

@@ -85,6 +85,17 @@ pub struct Evidence {
     /// Partial correlation of the joint's residual with the term's column (others held fixed).
     pub partial_corr: f64,
     pub accepted: bool,
+    /// Where the term was added on its coefficient instead of the block test
+    /// (`asym_coulomb` beside `coulomb`, whose evidence sits at the rests): that test.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub coefficient: Option<CoefficientTest>,
+}
+
+/// A coefficient's test: `|x| / σ`, σ from the block jackknife, and its critical value.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct CoefficientTest {
+    pub z: f64,
+    pub z_crit: f64,
 }
 
 /// One accepted step of the loop.
@@ -388,9 +399,9 @@ pub(super) fn accept(terms: &mut Vec<Term>, steps: &mut Vec<Step>, t: Term, mut 
 
 /// The held-out state of the model `terms`: its columns, weights, leave-one-block-out QR
 /// prefixes (every candidate's fits extend them) and per-block held-out SSE.
-type Fitted = (Vec<usize>, Vec<f64>, Vec<Prefix>, Vec<Vec<f64>>);
+pub(super) type Fitted = (Vec<usize>, Vec<f64>, Vec<Prefix>, Vec<Vec<f64>>);
 
-fn fitted(p: &Problem, terms: &[Term]) -> Result<Fitted, RankError> {
+pub(super) fn fitted(p: &Problem, terms: &[Term]) -> Result<Fitted, RankError> {
     let subset = p.subset(terms);
     let w = p.weights(&subset)?;
     let prefixes = p.loo_prefixes(&subset, &w);
@@ -604,7 +615,7 @@ pub(super) fn joint_test(cur: &[Vec<f64>], new: &[Vec<f64>], j: usize) -> (f64, 
 /// The evidence for adding candidate `c` to the model `terms` (columns `subset`, weights `w`,
 /// held-out weighted SSE `cur`); `None` when its column is collinear with the model's in this
 /// data.
-fn evidence(
+pub(super) fn evidence(
     p: &Problem,
     terms: &[Term],
     (subset, prefixes): (&[usize], &[Prefix]),
@@ -642,5 +653,6 @@ fn evidence(
         t_crit,
         partial_corr,
         accepted: false,
+        coefficient: None,
     })
 }

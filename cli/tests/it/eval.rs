@@ -84,6 +84,36 @@ fn extended_suite_finds_asymmetric_coulomb_and_invents_none() {
     assert_eq!(asym, 2, "the seeds' effects changed: {cases}");
 }
 
+/// Asymmetric Coulomb friction under point-to-point motion (issue 40, `--extended`), quick seeds
+/// 107 (a random arm's joint 2, 19 % of its torque) and 136 (a SCARA's joint 3, 14 %). Its column
+/// differs from an offset only at the rests, which fall in a few held-out blocks: the search's
+/// block test missed both (t 2.2 and 2.7 against 3.8–4.1), the coefficient test finds them
+/// (z 3.9 and 4.7 against 2.9 and 3.2). `asym_coulomb` itself must be found, beside `coulomb`, on
+/// that joint only; measured on seeds 1–200 (docs/eval.md): recall 0.86 → 0.96, no new false
+/// positive.
+#[test]
+fn extended_suite_finds_asymmetric_coulomb_at_the_rests_of_point_to_point_moves() {
+    for (seed, joint) in [("107", 2), ("136", 3)] {
+        let c = &extended_case(seed);
+        assert_eq!(
+            c["spec"]["excitation"], "point-to-point",
+            "the seed changed"
+        );
+        let (truth, got) = truth_and_found(c, "asym_coulomb");
+        assert_eq!(
+            truth,
+            vec![format!("asym_coulomb{joint}")],
+            "the seed changed"
+        );
+        assert_eq!(got, truth, "seed {seed}: {c}");
+        assert!(
+            found(c).contains(&format!("coulomb{joint}")),
+            "seed {seed}: {:?}",
+            found(c)
+        );
+    }
+}
+
 /// The effects real arms show (issue 40, `--extended`), quick seeds 23–27: four slow drifts
 /// (`1 − exp(−t/T)`, T = 60–600 s, 4–26 % of the joint's torque) on three arms, two of the cases
 /// also with a per-run offset or a position ripple the library cannot model. Every drift must be
@@ -151,16 +181,7 @@ fn extended_suite_finds_a_ripple_beside_its_joints_other_effects() {
         ("110", 1, &["coulomb1", "asym_coulomb1"][..]),
         ("138", 3, &["viscous3", "drift3"][..]),
     ] {
-        let (s, cases) = suite(&[
-            "--cases",
-            "1",
-            "--first-seed",
-            seed,
-            "--quick",
-            "--extended",
-        ]);
-        assert_eq!(s["failed"], 0, "{s}");
-        let c = &cases[0];
+        let c = &extended_case(seed);
         let (truth, got) = truth_and_found(c, "ripple");
         assert_eq!(
             truth,
@@ -186,16 +207,7 @@ fn extended_suite_finds_a_ripple_beside_its_joints_other_effects() {
 /// collinear with the model, and the drift is found; nothing is invented on the other joints.
 #[test]
 fn extended_suite_tests_a_group_without_its_collinear_member() {
-    let (s, cases) = suite(&[
-        "--cases",
-        "1",
-        "--first-seed",
-        "36",
-        "--quick",
-        "--extended",
-    ]);
-    assert_eq!(s["failed"], 0, "{s}");
-    let c = &cases[0];
+    let c = &extended_case("36");
     let (truth, got) = truth_and_found(c, "drift");
     assert_eq!(truth, vec!["drift3"], "the seed changed: {c}");
     assert_eq!(got, truth, "{c}");
@@ -215,6 +227,20 @@ fn extended_suite_tests_a_group_without_its_collinear_member() {
         got.iter().all(|f| f.ends_with('3')),
         "only joint 3: {got:?}"
     );
+}
+
+/// One quick `--extended` case of the suite, seed `seed`, run without failure: its cases.json entry.
+fn extended_case(seed: &str) -> serde_json::Value {
+    let (s, cases) = suite(&[
+        "--cases",
+        "1",
+        "--first-seed",
+        seed,
+        "--quick",
+        "--extended",
+    ]);
+    assert_eq!(s["failed"], 0, "{s}");
+    cases[0].clone()
 }
 
 /// A case's terms of effect `kind` (`drift3`, …): those drawn in truth, and those found by the
