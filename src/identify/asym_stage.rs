@@ -11,8 +11,9 @@
 //! model — and the joint's offset, so that a constant is not taken for it — is tested,
 //! `|x| / σ` with σ from the block jackknife, two-sided at the selection's level, Bonferroni over
 //! the joints tested; a passing term is added when it also meets the search's practical rules
-//! (≥ 1 % of the joint's held-out residual removed, ≥ 1e-6 of its torque power). Asymmetric friction is a refinement of the Coulomb friction the search already found,
-//! so the family is those joints, not every candidate.
+//! (≥ 1 % of the joint's held-out residual removed, ≥ 1e-6 of its torque power). Asymmetric
+//! friction is a refinement of the Coulomb friction the search already found, so the family is
+//! those joints, not every candidate.
 
 use super::jackknife;
 use super::ls::t_quantile;
