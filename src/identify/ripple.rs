@@ -611,11 +611,11 @@ fn least_squares_k(
             })
         })
         .collect();
+    let extra: Vec<Term> = pairs.iter().chain(&constants).copied().collect();
     let mut terms = selected.selection.terms.clone();
-    terms.extend(pairs.iter().chain(&constants));
+    terms.extend(&extra);
     terms.sort();
     terms.dedup();
-    let extra: Vec<Term> = pairs.iter().chain(&constants).copied().collect();
     let layout = |s: &[RippleScan]| with_ripple(&selected.problem.layout, s, extra.iter());
     let p0 = Problem::build(base, layout(scans), train, cfg.blocks);
     let subset = p0.independent(&p0.subset(&terms));

@@ -399,7 +399,7 @@ pub(super) fn accept(terms: &mut Vec<Term>, steps: &mut Vec<Step>, t: Term, mut 
 
 /// The held-out state of the model `terms`: its columns, weights, leave-one-block-out QR
 /// prefixes (every candidate's fits extend them) and per-block held-out SSE.
-pub(super) type Fitted = (Vec<usize>, Vec<f64>, Vec<Prefix>, Vec<Vec<f64>>);
+type Fitted = (Vec<usize>, Vec<f64>, Vec<Prefix>, Vec<Vec<f64>>);
 
 pub(super) fn fitted(p: &Problem, terms: &[Term]) -> Result<Fitted, RankError> {
     let subset = p.subset(terms);
