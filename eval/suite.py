@@ -43,8 +43,9 @@ REPO = Path(__file__).resolve().parents[1]
 EFFECTS = ["viscous", "coulomb", "armature", "spring", "offset"]
 # The effects real arms show (issue 40), drawn with `--extended` and added to the recorded torque (docs/eval.md):
 # position ripple sin(k·q + φ), asymmetric Coulomb (Fc+ ≠ Fc-), a per-run offset (sensor re-zeroing) and a slow
-# thermal drift 1 - exp(-t/T) over each run.
-NEW_EFFECTS = ["ripple", "asym_coulomb", "run_offset", "drift"]
+# thermal drift 1 - exp(-t/T) over each run; friction that no closed form fits (a friction curve in q̇, drawn from its
+# own random stream so the other effects' draws stay those of the four before it).
+NEW_EFFECTS = ["ripple", "asym_coulomb", "run_offset", "drift", "friction_curve"]
 # Per new effect: the library's effect kinds that model it (all must be found for it to count as found; `a|b`: either,
 # as `asym_coulomb` and `offset` are the same column on a motion without rests) and the kinds that may absorb part
 # of it without being a false positive (a drift's or per-run offset's mean is an offset). An effect with no library
@@ -54,6 +55,9 @@ MODELLED_BY: dict[str, tuple[list[str], list[str]]] = {
     "asym_coulomb": (["coulomb", "asym_coulomb|offset"], []),
     "run_offset": (["run_offset"], ["offset"]),
     "drift": (["drift"], ["offset"]),
+    # A natural cubic spline is the library's spline columns with an offset and viscous friction, and a sublinear
+    # curve's steep rise at rest is partly a Coulomb step: those three complete the spline, not false positives.
+    "friction_curve": (["spline"], ["viscous", "coulomb", "offset"]),
 }
 GENERATED = ["planar2", "puma560", "panda", "scara"]
 CUTOFF_GRID = [1.0, 2.0, 4.0, 8.0, 16.0]
@@ -135,11 +139,15 @@ def new_effects(seed: int, kinds: list[str]) -> list[dict]:
     """The `--extended` effects of a case, from their own random stream (the other draws stay those of the plain
     suite): each joint gets each new effect with probability 0.12 (ripple on revolute joints only), sized to a
     torque share of 3-30 %. Shapes: ripple `sin(k·q + φ)`, k = 3-15 per radian; asymmetric Coulomb `[q̇>0] - ρ[q̇<0]`
-    with ρ (or 1/ρ) = 0.3-0.7; per-run offset `z_r`, z ~ N(0, 1) per run; drift `1 - exp(-t/T)`, T = 60-600 s."""
+    with ρ (or 1/ρ) = 0.3-0.7; per-run offset `z_r`, z ~ N(0, 1) per run; drift `1 - exp(-t/T)`, T = 60-600 s;
+    friction curve `sign(q̇)·|q̇/r|^δ` (r the joint's RMS training velocity) with δ = 0.3-0.7 (sublinear, as a
+    harmonic drive's or a lubricated gear's friction grows slower than viscous) or 1.5-3 (superlinear: churning
+    losses), less its least-squares fit by `sign(q̇)` and `q̇` on the training runs (what Coulomb and viscous friction
+    cannot take) — the friction curve's own stream, so the four before it keep their draws."""
     rng = np.random.default_rng(seed + 7_000_003)
     out = []
     for j, kind in enumerate(kinds):
-        for e in NEW_EFFECTS:
+        for e in NEW_EFFECTS[:4]:
             draw = rng.random() < 0.12
             share = float(rng.uniform(0.03, 0.30))
             k, phase, rho = rng.uniform(3.0, 15.0), rng.uniform(0, 2 * math.pi), rng.uniform(0.3, 0.7)
@@ -155,13 +163,20 @@ def new_effects(seed: int, kinds: list[str]) -> list[dict]:
                 "drift": {"T": float(tau_s)},
             }[e]
             out.append({"effect": e, "joint": j + 1, "share": share, **shape})
+    curve = np.random.default_rng(seed + 9_000_011)
+    for j in range(len(kinds)):
+        draw = curve.random() < 0.12
+        share = float(curve.uniform(0.03, 0.30))
+        delta = float(curve.uniform(0.3, 0.7) if curve.random() < 0.5 else curve.uniform(1.5, 3.0))
+        if draw:
+            out.append({"effect": "friction_curve", "joint": j + 1, "share": share, "delta": delta})
     return out
 
 
-def case_spec(seed: int, quick: bool = False, extended: bool = False) -> dict:
+def case_spec(seed: int, quick: bool = False, extended: bool | list[str] = False) -> dict:
     """Everything random about a case, from its seed (the simulation itself is deterministic). `quick` (the test
     command's subset): the same draws, then at most 4 joints (planar2 or scara for a generated arm), 500 Hz and 15 s.
-    `extended`: the same case plus the effects real arms show ([`new_effects`])."""
+    `extended`: the same case plus the effects real arms show ([`new_effects`]); a list: only those of them."""
     rng = np.random.default_rng(seed)
     spec: dict = {"seed": seed, "quick": quick}
     if rng.random() < 0.5:
@@ -200,7 +215,8 @@ def case_spec(seed: int, quick: bool = False, extended: bool = False) -> dict:
         spec["effects"] = [e for e in spec["effects"] if e["joint"] <= n]
         spec["rate"] = min(spec["rate"], 500.0)
         spec["duration"] = 15.0
-    spec["new_effects"] = new_effects(seed, spec["kinds"]) if extended else []
+    chosen = NEW_EFFECTS if extended is True else (extended or [])
+    spec["new_effects"] = [e for e in new_effects(seed, spec["kinds"]) if e["effect"] in chosen]
     return spec
 
 
@@ -287,7 +303,18 @@ def new_shape(e: dict, run: int, t: np.ndarray, q: np.ndarray, dq: np.ndarray) -
         return np.where(dq > 0, 1.0, 0.0) - e["rho"] * np.where(dq < 0, 1.0, 0.0)
     if e["effect"] == "run_offset":
         return np.full_like(q, e["z"][run % len(e["z"])])
+    if e["effect"] == "friction_curve":
+        return np.sign(dq) * np.abs(dq / e["r"]) ** e["delta"] - e["fit"][0] * np.sign(dq) - e["fit"][1] * dq
     return 1.0 - np.exp(-(t - t[0]) / e["T"])
+
+
+def friction_fit(delta: float, dq: np.ndarray) -> dict:
+    """The friction curve's velocity unit `r` (RMS of the training runs' q̇) and its least-squares fit by `sign(q̇)`
+    and `q̇` there (subtracted, so the effect is the part no Coulomb or viscous friction explains)."""
+    r = float(np.sqrt(np.mean(dq**2))) or 1.0
+    g = np.sign(dq) * np.abs(dq / r) ** delta
+    fit = np.linalg.lstsq(np.column_stack([np.sign(dq), dq]), g, rcond=None)[0]
+    return {"r": r, "fit": [float(fit[0]), float(fit[1])]}
 
 
 def new_torques(spec_new: list[dict], runs: list, rms: np.ndarray) -> tuple[list[dict], list[np.ndarray]]:
@@ -296,6 +323,8 @@ def new_torques(spec_new: list[dict], runs: list, rms: np.ndarray) -> tuple[list
     effects, extra = [], [np.zeros_like(r[1]) for r in runs]
     for e in spec_new:
         j = e["joint"] - 1
+        if e["effect"] == "friction_curve":
+            e = {**e, **friction_fit(e["delta"], np.concatenate([r[2][:, j] for r in runs[:2]]))}
         shapes = [new_shape(e, r, t, q[:, j], dq[:, j]) for r, (t, q, dq, _) in enumerate(runs)]
         shape_rms = max(float(np.sqrt(np.mean(np.concatenate(shapes) ** 2))), 1e-12)
         coef = e["share"] * rms[j] / shape_rms
@@ -387,16 +416,18 @@ def library_truth(effects: list[dict]) -> tuple[dict[str, float], set[str]]:
     return true, allowed - set(true)
 
 
-def ripple_kind(effect: str) -> str:
-    """The library's ripple is a pair of columns (`ripple_sin`, `ripple_cos`: any phase); either found is the
-    ripple found (`--effects ripple:J` asks for both)."""
-    return "ripple" if effect in ("ripple_sin", "ripple_cos") else effect
+def unit_kind(effect: str) -> str:
+    """The library's ripple is a pair of columns (`ripple_sin`, `ripple_cos`: any phase) and its friction spline
+    three (`spline_a`…); any one found is the effect found (`--effects ripple:J`, `spline:J` ask for all)."""
+    if effect in ("ripple_sin", "ripple_cos"):
+        return "ripple"
+    return "spline" if effect in ("spline_a", "spline_b", "spline_c") else effect
 
 
 def label_term(label: str) -> str:
     """A report label (`offset3`, `ripple_sin2`, `run_offset3@2`) as the suite's term (`ripple2`, `run_offset3`)."""
     m = re.fullmatch(r"([a-z_]+?)(\d+)(@.*)?", label)
-    return f"{ripple_kind(m.group(1))}{m.group(2)}" if m else label
+    return f"{unit_kind(m.group(1))}{m.group(2)}" if m else label
 
 
 def identify(dynid: str, arm: str, runs: list[Path], out: Path, extra: list[str]) -> dict:
@@ -410,9 +441,9 @@ def identify(dynid: str, arm: str, runs: list[Path], out: Path, extra: list[str]
     r = json.loads((out / "report.json").read_text())
     return {
         "validation": r["error"]["after"]["validation"]["overall"],
-        "found": sorted({f"{ripple_kind(e['effect'])}{e['joint']}" for e in r["effects_found"]}),
+        "found": sorted({f"{unit_kind(e['effect'])}{e['joint']}" for e in r["effects_found"]}),
         # Terms the per-joint guard added to the model (0-based joints in `selection`).
-        "guarded": sorted({f"{ripple_kind(t['effect'])}{t['joint'] + 1}" for t in r["selection"].get("guarded", [])}),
+        "guarded": sorted({f"{unit_kind(t['effect'])}{t['joint'] + 1}" for t in r["selection"].get("guarded", [])}),
         "not_identifiable": sorted(m["effect"] for m in r["not_identifiable"]),
         # Candidates the data cannot tell apart from the selected model (their column is in its span).
         "collinear": sorted({label_term(t) for t in r["selection"].get("collinear", [])}),
@@ -630,6 +661,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--keep", action="store_true", help="keep every case's logs and reports under OUT/")
     ap.add_argument("--quick", action="store_true", help="the test command's subset: <= 4 joints, <= 500 Hz, 15 s")
     ap.add_argument("--extended", action="store_true", help="add the effects real arms show (NEW_EFFECTS)")
+    ap.add_argument(
+        "--new-effects",
+        help="comma list: only these of NEW_EFFECTS (each has its own draws, so the others' cases stay the same)",
+    )
     ap.add_argument("--pattern", type=Path, help="run one hand-written case (eval/patterns/*.json) instead")
     ap.add_argument(
         "--rescore", type=Path, nargs="+", metavar="DIR", help="score earlier runs' OUT dirs together (no identify)"
@@ -653,7 +688,10 @@ def main(argv: list[str] | None = None) -> int:
     pattern = str(a.pattern.resolve()) if a.pattern else ""
     if pattern:
         seeds = range(1)
-    jobs = [(str(Path(a.dynid).resolve()), s, keep, a.quick, pattern, a.extended) for s in seeds]
+    extended = [e.strip() for e in a.new_effects.split(",")] if a.new_effects else a.extended
+    if a.new_effects and (unknown := [e for e in extended if e not in NEW_EFFECTS]):
+        ap.error(f"--new-effects: unknown {', '.join(unknown)} — known: {', '.join(NEW_EFFECTS)}")
+    jobs = [(str(Path(a.dynid).resolve()), s, keep, a.quick, pattern, extended) for s in seeds]
     start = time.perf_counter()
     cases = []
     with ProcessPoolExecutor(max_workers=a.jobs) as pool:

@@ -5,9 +5,9 @@
 //! entries are those of the inertia *tensor*, i.e. `ixy = −∫xy dm`, as in URDF). An optional
 //! `[effects]` table holds per-joint arrays ([`KNOWN_EFFECTS`]): the coefficients of
 //! `viscous`, `coulomb`, `asym_coulomb`, `stribeck`, `armature`, `offset`, `spring`, `drift`,
-//! `ripple_sin`, `ripple_cos` and `loadcoulomb`, and the friction's velocity scales
-//! `sign_velocity` (the sign is `tanh(q̇/v)`; absent or 0: exact) and
-//! `stribeck_velocity` (default 0.1) — the torque of each is [`crate::effects::Effect::column`].
+//! `ripple_sin`, `ripple_cos`, `spline_a`, `spline_b`, `spline_c` and `loadcoulomb`, and the
+//! friction's velocity scales `sign_velocity` (the sign is `tanh(q̇/v)`; absent or 0: exact),
+//! `stribeck_velocity` (default 0.1) and `spline_velocity` (the spline's velocity unit) — the torque of each is [`crate::effects::Effect::column`].
 //! `dynid identify` writes such a file (`identified.params.toml`, [`InertialParams::to_toml`]).
 //!
 //! `p` follows [`crate::model::PARAM_ORDER`]: per link `XX, XY, XZ, YY, YZ, ZZ, MX, MY, MZ, M`
@@ -45,7 +45,7 @@ use crate::tomlread::{Fail, Src, TableView};
 
 /// Names of the per-joint arrays an `[effects]` table may hold: the effects' coefficients, then
 /// the velocity scales of the friction terms.
-pub const KNOWN_EFFECTS: [&str; 14] = [
+pub const KNOWN_EFFECTS: [&str; 18] = [
     "viscous",
     "coulomb",
     "asym_coulomb",
@@ -56,10 +56,14 @@ pub const KNOWN_EFFECTS: [&str; 14] = [
     "drift",
     "ripple_sin",
     "ripple_cos",
+    "spline_a",
+    "spline_b",
+    "spline_c",
     "loadcoulomb",
     "sign_velocity",
     "stribeck_velocity",
     "ripple_wavenumber",
+    "spline_velocity",
 ];
 
 const TOP_KEYS: [&str; 3] = ["link", "effects", "allow_nonphysical"];
@@ -126,6 +130,11 @@ pub struct Effects {
     /// [`Effects::ripple_wavenumber`].
     pub ripple_sin: Option<Vec<f64>>,
     pub ripple_cos: Option<Vec<f64>>,
+    /// Friction as a natural cubic spline in `q̇ / r` ([`crate::effects::spline`]):
+    /// `τ += a·N₁ + b·N₂ + c·N₃`, `u` from [`Effects::spline_velocity`].
+    pub spline_a: Option<Vec<f64>>,
+    pub spline_b: Option<Vec<f64>>,
+    pub spline_c: Option<Vec<f64>>,
     /// Load-dependent Coulomb friction `μ` (gear friction growing with the transmitted torque):
     /// `τ = u + μ·sign(q̇)·|u|`, `u` the rigid-body torque plus the other effects
     /// ([`Effects::load`]; `μ < 1`).
@@ -139,6 +148,8 @@ pub struct Effects {
     /// Wavenumber `k` of the position ripple (rad⁻¹ or m⁻¹; required with `ripple_sin` or
     /// `ripple_cos`).
     pub ripple_wavenumber: Option<Vec<f64>>,
+    /// Velocity unit `u` of the friction spline (rad/s or m/s; required with its coefficients).
+    pub spline_velocity: Option<Vec<f64>>,
 }
 
 impl Effects {
@@ -153,6 +164,9 @@ impl Effects {
             && self.drift.is_none()
             && self.ripple_sin.is_none()
             && self.ripple_cos.is_none()
+            && self.spline_a.is_none()
+            && self.spline_b.is_none()
+            && self.spline_c.is_none()
             && self.loadcoulomb.is_none()
             && self.stribeck.is_none()
     }
@@ -164,6 +178,7 @@ impl Effects {
             coulomb_v: at(&self.sign_velocity, Scales::EXACT.coulomb_v),
             stribeck_v: at(&self.stribeck_velocity, Scales::EXACT.stribeck_v),
             ripple_k: at(&self.ripple_wavenumber, 0.0),
+            spline_v: at(&self.spline_velocity, Scales::EXACT.spline_v),
         }
     }
 
@@ -181,7 +196,7 @@ impl Effects {
     }
 
     /// Every `[effects]` array with its key, in [`KNOWN_EFFECTS`] order (the file's order).
-    pub fn arrays(&self) -> [(&'static str, &Option<Vec<f64>>); 14] {
+    pub fn arrays(&self) -> [(&'static str, &Option<Vec<f64>>); 18] {
         [
             ("viscous", &self.viscous),
             ("coulomb", &self.coulomb),
@@ -193,10 +208,14 @@ impl Effects {
             ("drift", &self.drift),
             ("ripple_sin", &self.ripple_sin),
             ("ripple_cos", &self.ripple_cos),
+            ("spline_a", &self.spline_a),
+            ("spline_b", &self.spline_b),
+            ("spline_c", &self.spline_c),
             ("loadcoulomb", &self.loadcoulomb),
             ("sign_velocity", &self.sign_velocity),
             ("stribeck_velocity", &self.stribeck_velocity),
             ("ripple_wavenumber", &self.ripple_wavenumber),
+            ("spline_velocity", &self.spline_velocity),
         ]
     }
 
@@ -215,12 +234,15 @@ impl Effects {
             Effect::Drift => &mut self.drift,
             Effect::RippleSin => &mut self.ripple_sin,
             Effect::RippleCos => &mut self.ripple_cos,
+            Effect::SplineA => &mut self.spline_a,
+            Effect::SplineB => &mut self.spline_b,
+            Effect::SplineC => &mut self.spline_c,
             Effect::LoadCoulomb => &mut self.loadcoulomb,
         }
     }
 
     /// The additive effects and their coefficients, in summation order.
-    fn additive(&self) -> [(Effect, &Option<Vec<f64>>); 8] {
+    fn additive(&self) -> [(Effect, &Option<Vec<f64>>); 11] {
         [
             (Effect::Viscous, &self.viscous),
             (Effect::Coulomb, &self.coulomb),
@@ -230,6 +252,9 @@ impl Effects {
             (Effect::Spring, &self.spring),
             (Effect::RippleSin, &self.ripple_sin),
             (Effect::RippleCos, &self.ripple_cos),
+            (Effect::SplineA, &self.spline_a),
+            (Effect::SplineB, &self.spline_b),
+            (Effect::SplineC, &self.spline_c),
         ]
     }
 
@@ -284,6 +309,7 @@ impl Clone for ParamsError {
             ParamsErrorKind::NonPhysical(n) => ParamsErrorKind::NonPhysical(*n),
             ParamsErrorKind::BothInertias => ParamsErrorKind::BothInertias,
             ParamsErrorKind::RippleWithoutWavenumber => ParamsErrorKind::RippleWithoutWavenumber,
+            ParamsErrorKind::SplineWithoutVelocity => ParamsErrorKind::SplineWithoutVelocity,
             ParamsErrorKind::LoadFrictionRange { joint, value } => {
                 ParamsErrorKind::LoadFrictionRange {
                     joint: *joint,
@@ -337,6 +363,8 @@ pub enum ParamsErrorKind {
     },
     /// Ripple coefficients without their wavenumber.
     RippleWithoutWavenumber,
+    /// Friction spline coefficients without its velocity unit.
+    SplineWithoutVelocity,
     /// A friction velocity scale that is negative (or zero where it divides).
     Velocity {
         key: String,
@@ -403,6 +431,10 @@ impl fmt::Display for ParamsErrorKind {
             ParamsErrorKind::RippleWithoutWavenumber => write!(
                 f,
                 "ripple coefficients without `ripple_wavenumber` — give each joint's k (rad^-1), the ripple is a·sin(k·q) + b·cos(k·q)"
+            ),
+            ParamsErrorKind::SplineWithoutVelocity => write!(
+                f,
+                "friction spline coefficients without `spline_velocity` — give each joint's velocity unit u (rad/s or m/s, > 0; the knots are at q̇/u = 0, ±0.5, ±1)"
             ),
             ParamsErrorKind::Velocity { key, joint, zero_ok } => write!(
                 f,
@@ -701,6 +733,25 @@ fn read_effects(t: &TableView<'_>, dof: usize) -> Result<Effects, ParamsError> {
         }
         Ok(v)
     };
+    let spline = [
+        t.f64_array_opt("spline_a", Some(dof))?,
+        t.f64_array_opt("spline_b", Some(dof))?,
+        t.f64_array_opt("spline_c", Some(dof))?,
+    ];
+    let spline_velocity = velocity("spline_velocity", false)?;
+    if spline_velocity.is_none() {
+        if let Some(key) = ["spline_a", "spline_b", "spline_c"]
+            .into_iter()
+            .zip(&spline)
+            .find_map(|(k, v)| v.is_some().then_some(k))
+        {
+            return Err(ParamsError {
+                loc: t.loc_of(key),
+                kind: Box::new(ParamsErrorKind::SplineWithoutVelocity),
+            });
+        }
+    }
+    let [spline_a, spline_b, spline_c] = spline;
     Ok(Effects {
         viscous: t.f64_array_opt("viscous", Some(dof))?,
         coulomb: t.f64_array_opt("coulomb", Some(dof))?,
@@ -712,10 +763,14 @@ fn read_effects(t: &TableView<'_>, dof: usize) -> Result<Effects, ParamsError> {
         drift: t.f64_array_opt("drift", Some(dof))?,
         ripple_sin,
         ripple_cos,
+        spline_a,
+        spline_b,
+        spline_c,
         loadcoulomb,
         sign_velocity: velocity("sign_velocity", true)?,
         stribeck_velocity: velocity("stribeck_velocity", false)?,
         ripple_wavenumber,
+        spline_velocity,
     })
 }
 
@@ -782,6 +837,29 @@ mod tests {
             .to_string();
         assert!(
             e.contains("bad.toml") && e.contains("ripple_wavenumber"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn friction_spline_round_trips_through_a_params_file() {
+        let text = format!(
+            "{LINK}[effects]\nspline_a = [0.2]\nspline_c = [-0.1]\nspline_velocity = [2.0]\n"
+        );
+        let p = InertialParams::from_str(&text, "s.toml", 1, &ParamsOptions::default()).unwrap();
+        // At q̇ = u (2 rad/s) each column is 1; at q̇ = −2u every column is 0 (left of the knots).
+        assert!((p.effects.torque(0, 0.0, 2.0, 0.0) - 0.1).abs() < 1e-15);
+        assert_eq!(p.effects.torque(0, 0.0, -4.0, 0.0), 0.0);
+        let again =
+            InertialParams::from_str(&p.to_toml(&[]), "again.toml", 1, &ParamsOptions::default())
+                .unwrap();
+        assert_eq!(again.effects, p.effects);
+        let bad = format!("{LINK}[effects]\nspline_b = [0.1]\n");
+        let e = InertialParams::from_str(&bad, "bad.toml", 1, &ParamsOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("bad.toml") && e.contains("spline_velocity"),
             "{e}"
         );
     }

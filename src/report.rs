@@ -159,6 +159,14 @@ fn run_number(t: &Term) -> Option<usize> {
     t.effect.is_per_run().then_some(t.run + 1)
 }
 
+/// A step's coefficient test: one coefficient's `z`, or a unit's joint F.
+fn coefficient_json(c: crate::identify::CoefficientTest) -> Value {
+    if c.columns > 1 {
+        return json!({"f": c.z, "f_crit": c.z_crit, "columns": c.columns, "test": "the friction spline's coefficients together: Hotelling's T^2 from their block-jackknife covariance as F(columns, blocks - columns), fitted with the model and the joint's offset, viscous and Coulomb friction; Bonferroni over the joints tested, family 1 %; added when it also passes the gain and torque-share rules"});
+    }
+    json!({"z": c.z, "z_crit": c.z_crit, "test": "asym_coulomb on a joint whose model holds coulomb: |coefficient| / block-jackknife sigma, fitted with the model and the joint's offset, two-sided, Bonferroni over the joints tested, family 1 %; added when it also passes the gain and torque-share rules"})
+}
+
 pub fn json_report(o: &Outcome, command: &str) -> Value {
     let eff: Vec<Value> = o
         .effects
@@ -184,7 +192,7 @@ pub fn json_report(o: &Outcome, command: &str) -> Value {
                     "t_stat": s.evidence.t_stat,
                     "t_crit": s.evidence.t_crit,
                     "partial_corr": s.evidence.partial_corr,
-                    "coefficient": s.evidence.coefficient.map(|c| json!({"z": c.z, "z_crit": c.z_crit, "test": "asym_coulomb on a joint whose model holds coulomb: |coefficient| / block-jackknife sigma, fitted with the model and the joint's offset, two-sided, Bonferroni over the joints tested, family 1 %; added when it also passes the gain and torque-share rules"})),
+                    "coefficient": s.evidence.coefficient.map(coefficient_json),
                     "test": "leave-one-block-out held-out error; one-sided t-test on per-block log ratios of the joint's held-out error, each capped at ±ln 4 (Bonferroni, family 1 %), gain >= 1 % of the joint's held-out residual variance and >= 1e-6 of its torque power",
                 }
             })
@@ -453,7 +461,7 @@ fn evidence_section(m: &mut String, o: &Outcome) {
     let _ = writeln!(m, "## Evidence for each effect added\n");
     let _ = writeln!(
         m,
-        "Each candidate (effect, joint) is judged on held-out time blocks ({} blocks; each block predicted by a fit on the others): added only if a one-sided t-test on the per-block log ratios of the joint's held-out error (each capped at ±ln 4) passes (Bonferroni over the candidates, family level 1 %), it removes ≥ 1 % of the joint's held-out residual variance and explains ≥ 1e-6 of its torque power. `asym_coulomb` on a joint whose model holds `coulomb` is also tested on its coefficient (`coefficient z`: |x| / block-jackknife σ, fitted with the model and the joint's offset, Bonferroni over those joints): its evidence sits in the few blocks with rests.\n",
+        "Each candidate (effect, joint) is judged on held-out time blocks ({} blocks; each block predicted by a fit on the others): added only if a one-sided t-test on the per-block log ratios of the joint's held-out error (each capped at ±ln 4) passes (Bonferroni over the candidates, family level 1 %), it removes ≥ 1 % of the joint's held-out residual variance and explains ≥ 1e-6 of its torque power. `asym_coulomb` on a joint whose model holds `coulomb` is also tested on its coefficient (`coefficient z`: |x| / block-jackknife σ, fitted with the model and the joint's offset, Bonferroni over those joints): its evidence sits in the few blocks with rests. The friction spline (`spline_a…c`, after the closed forms) is tested on its three coefficients together (`coefficients F`: Hotelling's T² from their block-jackknife covariance, fitted with the model and the joint's offset, viscous and Coulomb friction, Bonferroni over the joints): its evidence sits in the blocks where the joint moves fast.\n",
         o.blocks
     );
     let _ = writeln!(
@@ -464,6 +472,7 @@ fn evidence_section(m: &mut String, o: &Outcome) {
     for (i, s) in o.selection.steps.iter().enumerate() {
         let e = &s.evidence;
         let test = match e.coefficient {
+            Some(c) if c.columns > 1 => format!("coefficients F {:.2} / {:.2}", c.z, c.z_crit),
             Some(c) => format!("coefficient z {:.2} / {:.2}", c.z, c.z_crit),
             None => format!("{:.1} / {:.1}", e.t_stat, e.t_crit),
         };

@@ -17,6 +17,8 @@ pub struct Scales {
     /// Wavenumber of the position ripple columns (rad⁻¹ or m⁻¹; `sin(k·q)`, `cos(k·q)`); 0 when
     /// the joint has none.
     pub ripple_k: f64,
+    /// Velocity unit `u` of the friction spline's columns ([`super::spline::velocity_unit`]).
+    pub spline_v: f64,
 }
 
 impl Scales {
@@ -26,6 +28,7 @@ impl Scales {
         coulomb_v: 0.0,
         stribeck_v: 0.1,
         ripple_k: 0.0,
+        spline_v: 1.0,
     };
 
     /// The default Coulomb smoothing velocity as a fraction of the RMS joint velocity.
@@ -33,7 +36,8 @@ impl Scales {
     /// The Stribeck velocity as a fraction of the RMS joint velocity.
     pub const STRIBECK_FRACTION: f64 = 0.1;
 
-    /// From the RMS joint velocity of the training data: `v` = 1 %, Stribeck velocity = 10 % of it.
+    /// From the RMS joint velocity of the training data: `v` = 1 %, Stribeck velocity = 10 % of it
+    /// (the spline's unit: the RMS velocity until [`Scales::with_spline_unit`] sets it).
     pub fn from_rms_velocity(rms: f64) -> Self {
         let rms = if rms.is_finite() && rms > 0.0 {
             rms
@@ -44,6 +48,7 @@ impl Scales {
             coulomb_v: Self::COULOMB_FRACTION * rms,
             stribeck_v: Self::STRIBECK_FRACTION * rms,
             ripple_k: 0.0,
+            spline_v: rms,
         }
     }
 
@@ -52,6 +57,14 @@ impl Scales {
     pub fn with_coulomb_fraction(&self, fraction: f64) -> Self {
         Scales {
             coulomb_v: fraction * self.stribeck_v / Self::STRIBECK_FRACTION,
+            ..*self
+        }
+    }
+
+    /// The same scales with the friction spline's velocity unit `u`.
+    pub fn with_spline_unit(&self, u: f64) -> Self {
+        Scales {
+            spline_v: u,
             ..*self
         }
     }
@@ -180,6 +193,9 @@ impl Term {
             Effect::RippleSin => (st.scales.ripple_k * st.q).sin(),
             Effect::RippleCos => (st.scales.ripple_k * st.q).cos(),
             Effect::RunOffset => st.run.indicator(self.run),
+            Effect::SplineA => super::spline::column(0, st.dq / st.scales.spline_v),
+            Effect::SplineB => super::spline::column(1, st.dq / st.scales.spline_v),
+            Effect::SplineC => super::spline::column(2, st.dq / st.scales.spline_v),
             Effect::LoadCoulomb => st.sign() * load.abs(),
         }
     }

@@ -29,6 +29,7 @@ pub fn structural_merges(
         coulomb_v: 1.0,
         stribeck_v: 1.0,
         ripple_k: 1.0,
+        spline_v: 1.0,
     };
     let svd = a.clone().svd(true, true);
     let mut out = Vec::new();

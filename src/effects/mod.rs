@@ -13,6 +13,7 @@
 //! | `drift` | `t`, the time since the start of the run (slow thermal drift: a motor's and gear's friction and a torque sensor's zero change as they warm up, over minutes — nearly linear over one run) | N·m/s |
 //! | `ripple_sin`, `ripple_cos` | `sin(kⱼ·qⱼ)`, `cos(kⱼ·qⱼ)`, `kⱼ` the joint's ripple wavenumber (rad⁻¹), found from the residual (position-dependent ripple: cogging, gear and sensor ripple; the pair is any phase) | N·m |
 //! | `run_offset` | `1` in training run m, `0` in the other training runs, `1/R` in any other run (R training runs): one column per training run after the first (whose offset is `offset`'s), so an unseen run gets the mean of the runs' offsets (a torque sensor or current offset re-zeroed between runs) | N·m |
+//! | `spline_a`, `spline_b`, `spline_c` | natural cubic spline columns in `q̇ⱼ / uⱼ`, `uⱼ` the 8-norm of q̇ⱼ (near its top speed), knots at 0, ±½, ±1 ([`spline`]; friction no closed form fits — with `viscous` and `offset` any natural cubic spline on those knots; the three are one unit) | N·m |
 //! | `loadcoulomb` | `tanh(q̇ⱼ / vⱼ) · |τ̂ⱼ|`, τ̂ⱼ the rigid-body torque of joint j (load-dependent friction: a gear's friction grows with the torque it transmits) | N·m per N·m |
 //!
 //! `loadcoulomb` is bilinear (its column holds the rigid-body parameters), so it is fitted in two
@@ -40,6 +41,7 @@ use serde::Serialize;
 mod column;
 mod load;
 mod merges;
+pub mod spline;
 #[cfg(test)]
 mod tests;
 
@@ -62,6 +64,9 @@ pub enum Effect {
     RippleSin,
     RippleCos,
     RunOffset,
+    SplineA,
+    SplineB,
+    SplineC,
     #[serde(rename = "loadcoulomb")]
     LoadCoulomb,
 }
@@ -92,6 +97,12 @@ impl Effect {
     /// with [`Effect::ALL`] when there are two training runs or more.
     pub const PER_RUN: [Effect; 1] = [Effect::RunOffset];
 
+    /// Friction as a spline in the velocity ([`spline`]): three columns per joint, searched as
+    /// one unit after [`Effect::ALL`] and the ripple, before [`Effect::LOADED`]
+    /// ([`crate::identify::friction_spline`]).
+    pub const SPLINE: [Effect; spline::COLUMNS] =
+        [Effect::SplineA, Effect::SplineB, Effect::SplineC];
+
     /// Share of a joint's training samples at rest below which `asym_coulomb` is not searched:
     /// its column then differs from `offset`'s only around velocity reversals (about 1 % of a
     /// smooth motion), so the data cannot tell the two apart.
@@ -113,6 +124,11 @@ impl Effect {
         Effect::RIPPLE.contains(&self)
     }
 
+    /// Whether the column is one of the friction spline's (see [`Effect::SPLINE`]).
+    pub fn is_spline(self) -> bool {
+        Effect::SPLINE.contains(&self)
+    }
+
     /// Whether the column needs the rigid-body torque (see [`Effect::LOADED`]).
     pub fn needs_load(self) -> bool {
         Effect::LOADED.contains(&self)
@@ -124,6 +140,7 @@ impl Effect {
             .into_iter()
             .chain(Effect::RIPPLE)
             .chain(Effect::PER_RUN)
+            .chain(Effect::SPLINE)
             .chain(Effect::LOADED)
     }
 
@@ -140,6 +157,9 @@ impl Effect {
             Effect::RippleSin => "ripple_sin",
             Effect::RippleCos => "ripple_cos",
             Effect::RunOffset => "run_offset",
+            Effect::SplineA => "spline_a",
+            Effect::SplineB => "spline_b",
+            Effect::SplineC => "spline_c",
             Effect::LoadCoulomb => "loadcoulomb",
         }
     }
@@ -159,7 +179,10 @@ impl Effect {
             | Effect::AsymCoulomb
             | Effect::RippleSin
             | Effect::RippleCos
-            | Effect::RunOffset => "N·m",
+            | Effect::RunOffset
+            | Effect::SplineA
+            | Effect::SplineB
+            | Effect::SplineC => "N·m",
             Effect::Armature => "kg·m²",
             Effect::Spring => "N·m/rad",
             Effect::Drift => "N·m/s",
@@ -225,12 +248,14 @@ pub fn parse_list(spec: &str, dof: usize) -> Result<EffectsSpec, String> {
             Some((n, j)) => (n, Some(j)),
             None => (item, None),
         };
-        // `ripple` is the pair (any phase).
+        // `ripple` is the pair (any phase), `spline` the friction spline's three columns.
         let effects: Vec<Effect> = if name.trim().eq_ignore_ascii_case("ripple") {
             Effect::RIPPLE.to_vec()
+        } else if name.trim().eq_ignore_ascii_case("spline") {
+            Effect::SPLINE.to_vec()
         } else {
             vec![Effect::parse(name).ok_or_else(|| {
-                format!("--effects: unknown effect `{name}` — known: {known}, ripple (the pair); or `auto`, `none`")
+                format!("--effects: unknown effect `{name}` — known: {known}, ripple (the pair), spline (its three columns); or `auto`, `none`")
             })?]
         };
         for effect in effects {

@@ -66,7 +66,11 @@ pub(super) fn asym_stage(
         if ev.heldout_gain < cfg.rules.min_gain || ev.torque_share < cfg.rules.min_share {
             continue;
         }
-        ev.coefficient = Some(CoefficientTest { z, z_crit });
+        ev.coefficient = Some(CoefficientTest {
+            z,
+            z_crit,
+            columns: 1,
+        });
         select::accept(&mut terms, &mut steps, c, ev);
     }
     selected.selection.terms = terms;

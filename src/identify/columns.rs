@@ -20,11 +20,14 @@ pub(super) fn make_layout(
     cfg: &Config,
 ) -> (Layout, Vec<Term>, Vec<Term>, Merged) {
     let n = base.dof();
+    let fast = mean_over_samples(train, n, |st, j, i| st.dq[j][i].powi(8));
     let scales: Vec<Scales> = mean_over_samples(train, n, |st, j, i| st.dq[j][i].powi(2))
         .into_iter()
-        .map(|ms| {
+        .zip(fast)
+        .map(|(ms, m8)| {
             Scales::from_rms_velocity(ms.sqrt())
                 .with_coulomb_fraction(cfg.coulomb_width.unwrap_or(Scales::COULOMB_FRACTION))
+                .with_spline_unit(effects::spline::velocity_unit(m8))
         })
         .collect();
     // Each joint's share of samples at rest, 1 − mean |tanh(q̇ / v)|.

@@ -45,8 +45,9 @@
 //!    ([`ripple`]: a wavenumber per joint from the residual's periodogram, then the pair
 //!    searched, and the first stage's candidates again on top of an accepted pair);
 //!    asymmetric Coulomb friction beside a joint's Coulomb friction also on its coefficient
-//!    (`asym_stage.rs`: its evidence sits at the rests, in a few held-out blocks);
-//!    load-dependent effects
+//!    (`asym_stage.rs`: its evidence sits at the rests, in a few held-out blocks); friction as a
+//!    spline in the velocity ([`friction_spline`]: the catch-all, on what the closed forms
+//!    leave); load-dependent effects
 //!    ([`Effect::LOADED`](crate::effects::Effect::LOADED)) in a second stage on top of the first
 //!    stage's model (`load_stage.rs`: their columns hold its torque, so the layout and problem
 //!    are rebuilt); when one is found, the scan is repeated with it in its models
@@ -69,7 +70,9 @@ pub mod coulomb_width;
 mod dot;
 mod evaluate;
 pub mod extrapolation;
+pub mod friction_spline;
 pub mod guard;
+mod hotelling;
 pub mod identifiability;
 mod jackknife;
 mod layout;
@@ -105,7 +108,7 @@ pub use scan::{
     choose_cutoff, scan_pieces, scan_sampling, CutoffTrial, FilterChoice, ScanSampling,
     SCAN_PIECES, SCAN_SAMPLES,
 };
-pub use select::{select, Evidence, Rules, Selection, Step};
+pub use select::{select, CoefficientTest, Evidence, Rules, Selection, Step};
 pub use weak::WeakJoint;
 
 use rayon::prelude::*;
@@ -387,6 +390,7 @@ fn run_prepared_with(
     let skip: Vec<usize> = weak.iter().map(|w| w.joint).collect();
     let (first, ripple_scans) = ripple::ripple_stage(base, train, cfg, first, (&skip, &searched))?;
     let first = asym_stage::asym_stage(cfg, first, &searched)?;
+    let first = friction_spline::spline_stage(base, train, cfg, first, (&skip, &searched))?;
     let selected = load_stage(base, train, cfg, first)?;
     let (selected, width_scan) = match cfg.coulomb_width {
         None => coulomb_width::choose_width(base, (train, grids), cfg.blocks, selected, &skip),

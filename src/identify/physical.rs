@@ -154,7 +154,11 @@ pub(super) fn consistent(
             | Effect::Spring
             | Effect::Drift
             | Effect::RippleSin
-            | Effect::RippleCos => {}
+            | Effect::RippleCos
+            // A spline's friction curve has no sign constraint per column.
+            | Effect::SplineA
+            | Effect::SplineB
+            | Effect::SplineC => {}
         }
     }
     cp.prior = opts.prior.as_ref().map(|p| DVector::from_column_slice(p));

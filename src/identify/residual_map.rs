@@ -425,7 +425,7 @@ pub fn chi2_sf(x: f64, k: f64) -> f64 {
 
 /// `ln Γ(x)`, `x > 0` (Lanczos, g = 7, 9 terms; ~1e-15 relative).
 #[allow(clippy::excessive_precision)]
-fn ln_gamma(x: f64) -> f64 {
+pub(super) fn ln_gamma(x: f64) -> f64 {
     const C: [f64; 9] = [
         0.999_999_999_999_809_93,
         676.520_368_121_885_1,

@@ -91,11 +91,14 @@ pub struct Evidence {
     pub coefficient: Option<CoefficientTest>,
 }
 
-/// A coefficient's test: `|x| / σ`, σ from the block jackknife, and its critical value.
+/// A coefficient's test: `|x| / σ`, σ from the block jackknife, and its critical value; for a
+/// unit of several columns (`columns` > 1) Hotelling's T² of their coefficients as an F
+/// statistic and its critical value instead (`super::hotelling`).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct CoefficientTest {
     pub z: f64,
     pub z_crit: f64,
+    pub columns: usize,
 }
 
 /// One accepted step of the loop.

@@ -37,6 +37,9 @@ pub fn params(o: &Outcome) -> Option<InertialParams> {
     if e.ripple_sin.is_some() || e.ripple_cos.is_some() {
         e.ripple_wavenumber = Some(o.scales.iter().map(|s| s.ripple_k).collect());
     }
+    if e.spline_a.is_some() || e.spline_b.is_some() || e.spline_c.is_some() {
+        e.spline_velocity = Some(o.scales.iter().map(|s| s.spline_v).collect());
+    }
     if e.stribeck.is_some() {
         e.stribeck_velocity = Some(o.scales.iter().map(|s| s.stribeck_v).collect());
     }
@@ -69,7 +72,7 @@ pub fn urdf(o: &Outcome, table: Option<&DhTable>) -> Option<Result<String, Strin
     Some(
         crate::urdf::export(table, Some(&p))
             .map(|s| {
-                let note = "<!-- dynid identify: identified (physically consistent) inertials; viscous and Coulomb friction as <dynamics damping friction>. URDF has no place for asymmetric Coulomb friction, rotor inertia, offsets, springs, Stribeck or load-dependent friction, or for the smoothed friction sign: identified.params.toml carries them. -->\n";
+                let note = "<!-- dynid identify: identified (physically consistent) inertials; viscous and Coulomb friction as <dynamics damping friction>. URDF has no place for asymmetric Coulomb friction, rotor inertia, offsets, springs, Stribeck, spline or load-dependent friction, or for the smoothed friction sign: identified.params.toml carries them. -->\n";
                 match s.find("<robot") {
                     Some(i) => format!("{}{note}{}", &s[..i], &s[i..]),
                     None => s,
