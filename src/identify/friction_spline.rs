@@ -1,27 +1,23 @@
-//! Stage 6a″, **friction as a spline in the velocity** ([`Effect::SPLINE`], [`spline_stage`]).
+//! Stage 6a″, **friction as a spline in the velocity** ([`Effect::SPLINE`], `spline_stage`).
 //!
 //! For a joint whose friction no closed form fits, the three natural-cubic-spline columns of
 //! [`crate::effects::spline`] (with `viscous` and `offset`, any natural cubic spline in `q̇ / u`
-//! on knots at 0, ±½ and ±1 of the joint's top speed `u`) are one unit per joint, tested after the closed forms
-//! (the first stage, the ripple and asymmetric friction) have taken what they explain: the
-//! spline is the catch-all, so it comes last. Its evidence sits where the joint moves fast (a
-//! curve that bends away from viscous friction at high speed), in some of the held-out blocks, so
-//! the search's block t-test has little power on it (suite cases: 30–60 % of the joint's held-out
-//! residual removed at t = 1.5–2.8 against 3.0–3.2). Like asymmetric Coulomb friction
-//! ([`super::asym_stage`]) it is tested on its coefficients: fitted with the model and the
-//! joint's offset, per-run offsets, viscous and Coulomb friction (so a constant, a line or a step
-//! is not taken for a curve, nor the offsets of runs at different speeds), the three together by Hotelling's T² from their block-jackknife covariance
-//! ([`super::hotelling`]), at the selection's level, Bonferroni over the joints tested; a
-//! passing unit is added when it also meets the search's practical rules (≥ 1 % of the joint's
-//! held-out residual removed, ≥ 1e-6 of its torque power). A Stribeck term the first stage added
-//! on that joint may have stood in for the curve (both bend friction at low speed): once a curve
-//! is in, it must pass the search's test again or it goes. Then the first stage's candidates are
-//! searched again on top of the curve: a slow drift or a per-run offset on that joint fails while
-//! the curve is in its residual (on the suite, 8 of 9 drifts on a joint with a curve were missed
-//! without this), and an offset, viscous or Coulomb term completes the curve's span (a natural
-//! cubic spline is the three columns with a constant and a line). Testing the unit on the model
-//! without the joint's Stribeck term instead found no more curves (suite recall 0.89 → 0.88).
-//! The load stage searches after this one.
+//! on knots at 0, ±½ and ±1 of the joint's top speed `u`) are one unit per joint, tested after
+//! the closed forms (the first stage, the ripple and asymmetric friction) have taken what they
+//! explain: the spline is the catch-all, so it comes last. Its evidence sits where the joint
+//! moves fast, in some of the held-out blocks, so the search's block t-test has little power on
+//! it. Like asymmetric Coulomb friction (`asym_stage.rs`) it is tested on its
+//! coefficients: fitted with the model and the joint's offset, per-run offsets, viscous and
+//! Coulomb friction (so a constant, a line, a step or the offsets of runs at different speeds
+//! are not taken for a curve), the three together by Hotelling's T² from their block-jackknife
+//! covariance (`hotelling.rs`), at the selection's level, Bonferroni over the joints
+//! tested; a passing unit is added when it also meets the search's practical rules (≥ 1 % of
+//! the joint's held-out residual removed, ≥ 1e-6 of its torque power). A Stribeck term the first
+//! stage added on that joint may have stood in for the curve (both bend friction at low speed):
+//! once a curve is in, it must pass the search's test again or it goes. Then the first stage's
+//! candidates are searched again on top of the curve: a slow drift or a per-run offset on that
+//! joint fails while the curve is in its residual, and an offset, viscous or Coulomb term
+//! completes the curve's span. The load stage searches after this one.
 
 use super::base::BaseModel;
 use super::hotelling;
@@ -125,8 +121,8 @@ pub(super) fn spline_stage(
 }
 
 /// The joint F test of `unit`'s coefficients fitted with the model `terms` and the joint's
-/// offset, per-run offsets, viscous and Coulomb friction (those the data tell apart); `None` when a column of the
-/// unit is collinear with them.
+/// offset, per-run offsets, viscous and Coulomb friction (those the data tell apart); `None`
+/// when a column of the unit is collinear with them.
 fn joint_f(
     p: &Problem,
     terms: &[Term],
