@@ -54,6 +54,23 @@ def check_eigenvalues(params: dict) -> list[str]:
     return problems
 
 
+def friction_spline(params: dict, v: np.ndarray, n: int) -> np.ndarray:
+    """`spline_a·N1 + spline_b·N2 + spline_c·N3` at x = q̇ / spline_velocity: the natural cubic spline basis of Hastie,
+    Tibshirani & Friedman (ESL eq. 5.4-5.5) on knots -1, -1/2, 0, 1/2, 1, each column scaled to 1 at x = 1 (the params
+    format's definition, written here from it)."""
+    knots = [-1.0, -0.5, 0.0, 0.5, 1.0]
+    x = v / effect(params, "spline_velocity", n, 1.0)
+
+    def d(k: int, x: np.ndarray) -> np.ndarray:
+        return (np.maximum(x - knots[k], 0) ** 3 - np.maximum(x - knots[-1], 0) ** 3) / (knots[-1] - knots[k])
+
+    def column(k: int, x: np.ndarray) -> np.ndarray:
+        one = np.ones(1)
+        return (d(k, x) - d(3, x)) / (d(k, one) - d(3, one))
+
+    return sum(effect(params, key, n) * column(k, x) for k, key in enumerate(["spline_a", "spline_b", "spline_c"]))
+
+
 def effect(params: dict, key: str, n: int, default: float = 0.0) -> np.ndarray:
     return np.asarray(params.get("effects", {}).get(key, [default] * n), dtype=float)
 
@@ -125,6 +142,7 @@ def main(argv: list[str] | None = None) -> int:
         + effect(params, "spring", n) * q
         + effect(params, "ripple_sin", n) * np.sin(effect(params, "ripple_wavenumber", n) * q)
         + effect(params, "ripple_cos", n) * np.cos(effect(params, "ripple_wavenumber", n) * q)
+        + friction_spline(params, v, n)
     )
     u = rigid + extra
     mu = effect(params, "loadcoulomb", n)
