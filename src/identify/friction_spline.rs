@@ -17,7 +17,10 @@
 //! once a curve is in, it must pass the search's test again or it goes. Then the first stage's
 //! candidates are searched again on top of the curve: a slow drift or a per-run offset on that
 //! joint fails while the curve is in its residual, and an offset, viscous or Coulomb term
-//! completes the curve's span. The load stage searches after this one.
+//! completes the curve's span. The load stage searches after this one: searched after it, a
+//! curve took what the two-stage model of load-dependent friction leaves (its load is a
+//! model's torque, not the truth) on a plant with that friction only; searched before, a curve
+//! can take the load term's place (the DFKI pendulum's elbow on a 3-run split).
 
 use super::base::BaseModel;
 use super::hotelling;
@@ -43,10 +46,7 @@ pub(super) fn spline_stage(
         .filter(|j| !skip.contains(j))
         .map(|j| Effect::SPLINE.map(|e| Term::new(e, j)))
         .collect();
-    let mut layout = first.problem.layout.clone();
-    layout.terms.extend(units.iter().flatten());
-    layout.terms.sort();
-    layout.terms.dedup();
+    let layout = first.problem.layout.with_terms(units.iter().flatten());
     let p2 = Problem::build(base, layout, train, cfg.blocks);
     let terms = &first.selection.terms;
     let tested: Vec<([Term; 3], hotelling::JointF)> = units
@@ -66,23 +66,38 @@ pub(super) fn spline_stage(
         if f.f <= f_crit {
             continue;
         }
-        let (subset, w, prefixes, cur) =
-            select::fitted(&p2, &terms).map_err(IdentifyError::Rank)?;
-        let Some(mut ev) =
-            select::evidence(&p2, &terms, (&subset, &prefixes), &w, &cur, &unit, f64::NAN)
-        else {
+        // The unit the test fitted, less the per-run offsets: the curve with the joint's closed
+        // forms (without them it spans no curve through the origin with a slope).
+        let companions = closed_forms(&p2, &terms, &unit);
+        let whole: Vec<Term> = unit.iter().chain(&companions).copied().collect();
+        let Some(mut ev) = relevant(&p2, &terms, &whole, cfg)? else {
             continue;
         };
-        if ev.heldout_gain < cfg.rules.min_gain || ev.torque_share < cfg.rules.min_share {
-            continue;
-        }
         ev.coefficient = Some(CoefficientTest {
             z: f.f,
             z_crit: f_crit,
             columns: unit.len(),
         });
-        for t in unit {
+        for &t in &whole {
             select::accept(&mut terms, &mut steps, t, ev.clone());
+        }
+        // A closed form the curve does not need goes (the search's test, as for any term); the
+        // curve then must still meet the practical rules on its own, or it goes too.
+        let mut lost = false;
+        for &t in &companions {
+            if !passes_again(&p2, &mut terms, t, &cfg.rules)? {
+                steps.retain(|s| s.added != t);
+                lost = true;
+            }
+        }
+        let without: Vec<Term> = terms
+            .iter()
+            .filter(|t| !unit.contains(t))
+            .copied()
+            .collect();
+        if lost && relevant(&p2, &without, &unit, cfg)?.is_none() {
+            terms = without;
+            steps.retain(|s| !unit.contains(&s.added));
         }
     }
     if steps.is_empty() {
@@ -120,6 +135,23 @@ pub(super) fn spline_stage(
     })
 }
 
+/// The evidence for adding `unit` to the model `terms` when it meets the search's practical
+/// rules (held-out gain and torque share), else `None`.
+fn relevant(
+    p: &Problem,
+    terms: &[Term],
+    unit: &[Term],
+    cfg: &Config,
+) -> Result<Option<select::Evidence>, IdentifyError> {
+    let (subset, w, prefixes, cur) = select::fitted(p, terms).map_err(IdentifyError::Rank)?;
+    let ev = select::evidence(p, terms, (&subset, &prefixes), &w, &cur, unit, f64::NAN);
+    Ok(
+        ev.filter(|e| {
+            e.heldout_gain >= cfg.rules.min_gain && e.torque_share >= cfg.rules.min_share
+        }),
+    )
+}
+
 /// The joint F test of `unit`'s coefficients fitted with the model `terms` and the joint's
 /// offset, per-run offsets, viscous and Coulomb friction (those the data tell apart); `None`
 /// when a column of the unit is collinear with them.
@@ -137,13 +169,8 @@ fn joint_f(
         .terms
         .iter()
         .copied()
-        .filter(|t| t.effect.is_per_run() && t.joint == j);
-    let closed = [Effect::Offset, Effect::Viscous, Effect::Coulomb].map(|e| Term::new(e, j));
-    for t in closed.into_iter().chain(per_run) {
-        if !with.contains(&t) {
-            with.push(t);
-        }
-    }
+        .filter(|t| t.effect.is_per_run() && t.joint == j && !terms.contains(t));
+    with.extend(closed_forms(p, terms, unit).into_iter().chain(per_run));
     with.extend(unit);
     let independent = p.independent(&p.subset(&with));
     let cols: Vec<usize> = unit.iter().filter_map(|t| p.layout.col(t)).collect();
@@ -151,6 +178,24 @@ fn joint_f(
         return Ok(None);
     }
     hotelling::joint_f(p, &independent, &cols)
+}
+
+/// The offset, viscous and Coulomb friction of `unit`'s joint that the model `terms` lacks and
+/// the data tell apart from it and the unit (an offset on a vertical prismatic joint is its
+/// weight): fitted with a curve, they give it a constant, a slope and a step.
+fn closed_forms(p: &Problem, terms: &[Term], unit: &[Term; 3]) -> Vec<Term> {
+    let j = unit[0].joint;
+    let missing: Vec<Term> = [Effect::Viscous, Effect::Coulomb, Effect::Offset]
+        .map(|e| Term::new(e, j))
+        .into_iter()
+        .filter(|t| !terms.contains(t) && p.layout.col(t).is_some())
+        .collect();
+    let with: Vec<Term> = terms.iter().chain(&missing).chain(unit).copied().collect();
+    let independent = p.independent(&p.subset(&with));
+    missing
+        .into_iter()
+        .filter(|t| p.layout.col(t).is_some_and(|c| independent.contains(&c)))
+        .collect()
 }
 
 #[cfg(test)]

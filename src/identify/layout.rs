@@ -58,6 +58,31 @@ impl Layout {
         }
     }
 
+    /// This layout with `terms` added (sorted, each once) and the first-stage model of the
+    /// load-dependent columns ([`Layout::load`]) moved with the column indices: new terms sort
+    /// before the load-dependent ones and shift them.
+    pub(super) fn with_terms<'a>(&self, terms: impl IntoIterator<Item = &'a Term>) -> Layout {
+        let mut l2 = self.clone();
+        l2.terms.extend(terms);
+        l2.terms.sort();
+        l2.terms.dedup();
+        if !l2.load.is_empty() {
+            let mut load = vec![0.0; l2.ncols()];
+            for (c, &v) in self.load.iter().enumerate() {
+                let at = if c < l2.nb {
+                    Some(c)
+                } else {
+                    l2.col(&self.terms[c - l2.nb])
+                };
+                if let Some(at) = at {
+                    load[at] = v;
+                }
+            }
+            l2.load = load;
+        }
+        l2
+    }
+
     /// Column index of a term.
     pub fn col(&self, t: &Term) -> Option<usize> {
         self.terms.iter().position(|x| x == t).map(|i| self.nb + i)

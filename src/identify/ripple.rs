@@ -754,27 +754,9 @@ fn with_ripple<'a>(
     scans: &[RippleScan],
     terms: impl Iterator<Item = &'a Term>,
 ) -> Layout {
-    let mut l2 = layout.clone();
+    let mut l2 = layout.with_terms(terms);
     for s in scans {
         l2.scales[s.joint] = l2.scales[s.joint].with_ripple(s.k);
-    }
-    l2.terms.extend(terms);
-    l2.terms.sort();
-    l2.terms.dedup();
-    // Ripple columns sort before the load-dependent ones and shift their indices.
-    if !l2.load.is_empty() {
-        let mut load = vec![0.0; l2.ncols()];
-        for (c, &v) in layout.load.iter().enumerate() {
-            let at = if c < l2.nb {
-                Some(c)
-            } else {
-                l2.col(&layout.terms[c - l2.nb])
-            };
-            if let Some(at) = at {
-                load[at] = v;
-            }
-        }
-        l2.load = load;
     }
     l2
 }

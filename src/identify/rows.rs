@@ -560,4 +560,70 @@ mod tests {
             }
         }
     }
+
+    /// Terms added to a layout with load-dependent columns (a ripple pair on a rescan) leave every old column's values as they were: the first-stage model moves
+    /// with the column indices, so the load-dependent columns hold the same torque.
+    #[test]
+    fn terms_added_beside_load_dependent_columns_leave_the_old_columns_as_they_were() {
+        let arm = crate::arms::resolve("planar2").unwrap();
+        let table = arm.dh_table().unwrap();
+        let mut spec = Spec::new(table.clone(), 2);
+        spec.duration = 4.0;
+        let log = Log::from(generate(&spec));
+        let base = BaseModel::for_arm(&arm);
+        let cfg = Config::default();
+        let p = Prepared::with_cutoff(log, &cfg, Some(6.0), Smoothing::default(), None).unwrap();
+        let mut first = make_layout(&base, Some(&table), std::slice::from_ref(&p), &cfg).0;
+        // A term that sorts first among them comes back with the spline's: every column moves.
+        let viscous = crate::effects::Term::new(Effect::Viscous, 0);
+        first.terms.retain(|t| *t != viscous);
+        first
+            .terms
+            .push(crate::effects::Term::new(Effect::LoadCoulomb, 1));
+        first.load = (0..first.ncols()).map(|c| 0.1 + 0.01 * c as f64).collect();
+        *first.load.last_mut().unwrap() = 0.0;
+        let added: Vec<_> = Effect::SPLINE
+            .iter()
+            .map(|&e| crate::effects::Term::new(e, 0))
+            .chain([viscous])
+            .collect();
+        assert!(first.terms[0] > viscous);
+        let wider = first.with_terms(&added);
+        assert_eq!(wider.ncols(), first.ncols() + added.len());
+        assert_eq!(
+            wider.terms.last(),
+            first.terms.last(),
+            "load column stays last"
+        );
+        let st = p.states(0, 100);
+        let (mut a, mut b) = (
+            Rows::new(&base, &first, p.log.run()),
+            Rows::new(&base, &wider, p.log.run()),
+        );
+        let (n, nc, nw) = (first.dof, first.ncols(), wider.ncols());
+        let at: Vec<usize> = (0..nc)
+            .map(|c| match c < first.nb {
+                true => c,
+                false => wider.col(&first.terms[c - first.nb]).unwrap(),
+            })
+            .collect();
+        for k in [0, 5, 50, 99] {
+            let old = a.fill_grid(&st, k).to_vec();
+            let new = b.fill_grid(&st, k);
+            for j in 0..n {
+                for c in 0..nc {
+                    // (The load column sums the same products in another order: rounding.)
+                    let (x, y) = (old[j * nc + c], new[j * nw + at[c]]);
+                    assert!(
+                        (x - y).abs() <= 1e-12 * x.abs().max(1.0),
+                        "sample {k}, joint {j}, col {c}: {x} vs {y}"
+                    );
+                }
+            }
+            assert!(
+                old[nc - 1..].iter().step_by(nc).any(|&v| v != 0.0),
+                "load column non-zero"
+            );
+        }
+    }
 }
