@@ -11,8 +11,11 @@
 //! Coulomb friction (so a constant, a line, a step or the offsets of runs at different speeds
 //! are not taken for a curve), the three together by Hotelling's T² from their block-jackknife
 //! covariance (`hotelling.rs`), at the selection's level, Bonferroni over the joints
-//! tested; a passing unit is added when it also meets the search's practical rules (≥ 1 % of
-//! the joint's held-out residual removed, ≥ 1e-6 of its torque power). A Stribeck term the first
+//! tested. A passing unit is added as it was tested — the curve with the joint's offset, viscous
+//! and Coulomb terms the model lacks (those the data tell apart) — when it meets the search's
+//! practical rules (≥ 1 % of the joint's held-out residual removed, ≥ 1e-6 of its torque
+//! power); each of those closed forms must then pass the search's test again or it goes, and if
+//! one goes the curve must meet the practical rules without it. A Stribeck term the first
 //! stage added on that joint may have stood in for the curve (both bend friction at low speed):
 //! once a curve is in, it must pass the search's test again or it goes. Then the first stage's
 //! candidates are searched again on top of the curve: a slow drift or a per-run offset on that
