@@ -93,14 +93,16 @@ pub(super) fn spline_stage(
                 lost = true;
             }
         }
-        let without: Vec<Term> = terms
-            .iter()
-            .filter(|t| !unit.contains(t))
-            .copied()
-            .collect();
-        if lost && relevant(&p2, &without, &unit, cfg)?.is_none() {
-            terms = without;
-            steps.retain(|s| !unit.contains(&s.added));
+        if lost {
+            let without: Vec<Term> = terms
+                .iter()
+                .filter(|t| !unit.contains(t))
+                .copied()
+                .collect();
+            if relevant(&p2, &without, &unit, cfg)?.is_none() {
+                terms = without;
+                steps.retain(|s| !unit.contains(&s.added));
+            }
         }
     }
     if steps.is_empty() {

@@ -450,19 +450,26 @@ mod tests {
         assert_ne!(direct2.rows, direct.rows);
     }
 
-    /// A joint's active columns written straight are the full row's, gathered, bit for bit —
-    /// with every effect candidate, and with a load-dependent column (which takes the full row).
-    #[test]
-    fn active_columns_written_straight_are_the_full_rows_gathered() {
-        let arm = crate::arms::resolve("puma560").unwrap();
+    /// A 4 s synthetic log of `arm` (seed `seed`) prepared at a 6 Hz cut-off, and its layout
+    /// with every effect candidate.
+    fn four_seconds(arm: &str, seed: u64) -> (BaseModel, Prepared, crate::identify::Layout) {
+        let arm = crate::arms::resolve(arm).unwrap();
         let table = arm.dh_table().unwrap();
-        let mut spec = Spec::new(table.clone(), 3);
+        let mut spec = Spec::new(table.clone(), seed);
         spec.duration = 4.0;
         let log = Log::from(generate(&spec));
         let base = BaseModel::for_arm(&arm);
         let cfg = Config::default();
         let p = Prepared::with_cutoff(log, &cfg, Some(6.0), Smoothing::default(), None).unwrap();
-        let first = make_layout(&base, Some(&table), std::slice::from_ref(&p), &cfg).0;
+        let layout = make_layout(&base, Some(&table), std::slice::from_ref(&p), &cfg).0;
+        (base, p, layout)
+    }
+
+    /// A joint's active columns written straight are the full row's, gathered, bit for bit —
+    /// with every effect candidate, and with a load-dependent column (which takes the full row).
+    #[test]
+    fn active_columns_written_straight_are_the_full_rows_gathered() {
+        let (base, p, first) = four_seconds("puma560", 3);
         assert!(
             first.terms.len() >= 2 * first.dof && first.load.iter().all(|&l| l == 0.0),
             "{:?}",
@@ -561,19 +568,12 @@ mod tests {
         }
     }
 
-    /// Terms added to a layout with load-dependent columns (a ripple pair on a rescan) leave every old column's values as they were: the first-stage model moves
-    /// with the column indices, so the load-dependent columns hold the same torque.
+    /// Terms added to a layout with load-dependent columns (a ripple pair on a rescan) leave
+    /// every old column's values as they were: the first-stage model moves with the column
+    /// indices, so the load-dependent columns hold the same torque.
     #[test]
     fn terms_added_beside_load_dependent_columns_leave_the_old_columns_as_they_were() {
-        let arm = crate::arms::resolve("planar2").unwrap();
-        let table = arm.dh_table().unwrap();
-        let mut spec = Spec::new(table.clone(), 2);
-        spec.duration = 4.0;
-        let log = Log::from(generate(&spec));
-        let base = BaseModel::for_arm(&arm);
-        let cfg = Config::default();
-        let p = Prepared::with_cutoff(log, &cfg, Some(6.0), Smoothing::default(), None).unwrap();
-        let mut first = make_layout(&base, Some(&table), std::slice::from_ref(&p), &cfg).0;
+        let (base, p, mut first) = four_seconds("planar2", 2);
         // A term that sorts first among them comes back with the spline's: every column moves.
         let viscous = crate::effects::Term::new(Effect::Viscous, 0);
         first.terms.retain(|t| *t != viscous);
