@@ -449,6 +449,13 @@ def identify(dynid: str, arm: str, runs: list[Path], out: Path, extra: list[str]
         "collinear": sorted({label_term(t) for t in r["selection"].get("collinear", [])}),
         "cutoff_hz": r["data"]["train"][0]["derivative"]["cutoff_hz"],
         "seconds": secs,
+        # Per joint on the unseen run: this fit's error, and (an `--effects auto` fit only) the plain fit's, or
+        # None where the guard called the joint not identifiable.
+        "validation_per_joint": r["error"]["after"]["validation"]["per_joint"],
+        "plain_per_joint": [
+            None if g["winner"] == "not identifiable" else g.get("validation_plain")
+            for g in (r.get("guard") or {}).get("joints", [])
+        ],
     }
 
 
@@ -591,8 +598,34 @@ def score(cases: list[dict]) -> dict:
         "p90": float(np.percentile(cr, 90)),
         "max": float(cr.max()),
     }
+    out["joints_over_plain"] = over_plain(cases)
     out["seconds_per_identify"] = {"median": float(np.median(seconds or [np.nan])), "max": max(seconds or [np.nan])}
     return out
+
+
+def over_plain(cases: list[dict], bar: float = 1.05) -> dict:
+    """Joints whose error on the unseen run is over `bar` × the plain fit's (issue 40: every joint ≤ 1.05 × the plain
+    fit), for the selected model and for the fit of the case's true effects: a joint where both are over lost to an
+    unseen run the truth cannot predict either (a per-run offset, a drift's level), not to the selection."""
+    pairs = []  # (selected / plain, true effects / plain)
+    for c in cases:
+        a, t = c["auto"], c["true_auto"]
+        plain = a.get("plain_per_joint") or []
+        for j, p in enumerate(plain):
+            if p is None or p <= 0 or j >= len(a.get("validation_per_joint", [])):
+                continue
+            truth = t["validation_per_joint"][j] / p if "validation_per_joint" in t else math.nan
+            pairs.append((a["validation_per_joint"][j] / p, truth))
+    sel = [s > bar for s, _ in pairs]
+    tru = [t > bar for _, t in pairs]
+    return {
+        "bar": bar,
+        "joints": len(pairs),
+        "selected": sum(sel),
+        "true_effects": sum(tru),
+        "selected_not_true_effects": sum(s and not t for s, t in zip(sel, tru)),
+        "worst": max((s for s, _ in pairs), default=math.nan),
+    }
 
 
 def json_safe(x):
@@ -625,6 +658,10 @@ def markdown(s: dict, args: argparse.Namespace) -> str:
         f" {s['auto_cutoff_over_best_fixed']['max']:.2f}) | ≥ 0.95 |",
         f"| terms the per-joint guard added (not in the table below) | {s['guard_added']['true']} true,"
         f" {s['guard_added']['absent']} absent in truth | |",
+        f"| joints > {s['joints_over_plain']['bar']} × the plain fit on the unseen run |"
+        f" {s['joints_over_plain']['selected']} of {s['joints_over_plain']['joints']} (worst"
+        f" {s['joints_over_plain']['worst']:.2f} ×); the true effects' fit: {s['joints_over_plain']['true_effects']};"
+        f" selected over, true effects not: {s['joints_over_plain']['selected_not_true_effects']} | issue 40: 0 |",
         f"| identify run time | median {s['seconds_per_identify']['median']:.2f} s, worst"
         f" {s['seconds_per_identify']['max']:.1f} s | |",
         "",
