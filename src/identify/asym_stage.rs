@@ -63,7 +63,7 @@ pub(super) fn asym_stage(
             continue;
         };
         // Practically relevant as in the search: it lowers the joint's held-out error enough.
-        if ev.heldout_gain < cfg.rules.min_gain || ev.torque_share < cfg.rules.min_share {
+        if !cfg.rules.relevant(&ev) {
             continue;
         }
         ev.coefficient = Some(CoefficientTest {

@@ -6,6 +6,10 @@
 //! is not what the training data vouch for (extended suite, seed 129, before the ripple stage
 //! fitted the wavenumber: a spring and a ripple fitted over 2 rad predicted a run reaching 0.7 rad
 //! further at 31× the true model's error).
+//!
+//! The same holds in time for a **drift** (its column is the time since the file's start, a line
+//! fitted over the training files' durations): a validation file that runs longer carries the
+//! line past where it was fitted, while a thermal drift levels off.
 
 use super::prepare::Prepared;
 use crate::effects::{Effect, Term};
@@ -28,6 +32,38 @@ pub fn ranges(files: &[&Prepared], dof: usize) -> (Vec<f64>, Vec<f64>) {
         });
     }
     (lo, hi)
+}
+
+/// The longest time since its file's start over `files`' kept raw samples (s): how far a drift
+/// column reaches.
+pub fn duration(files: &[&Prepared]) -> f64 {
+    files
+        .iter()
+        .filter(|p| p.raw_keep.1 > p.raw_keep.0)
+        .map(|p| p.log.t(p.raw_keep.1 - 1) - p.log.t(0))
+        .fold(0.0, f64::max)
+}
+
+/// One warning naming the drift terms of `terms` when the validation file `val` runs more than
+/// [`MARGIN`] longer than `train` (s, [`duration`] of the training files).
+pub fn time_warning(train: f64, val: Option<&Prepared>, terms: &[Term]) -> Option<String> {
+    let val = val?;
+    let names: Vec<String> = terms
+        .iter()
+        .filter(|t| t.effect == Effect::Drift)
+        .map(Term::label)
+        .collect();
+    let reach = duration(&[val]);
+    (!names.is_empty() && train > 0.0 && reach > (1.0 + MARGIN) * train).then(|| {
+        format!(
+            "the validation file `{}` runs {:.1} s, the training files at most {:.1} s: {} (a line in the time since the file's start) is extrapolated over the rest, where a thermal drift would have levelled off, so the validation error late in that file is not what the training data vouch for. Train on runs as long as the ones you predict, or read the validation plot up to {:.1} s.",
+            val.name,
+            reach,
+            train,
+            names.join(", "),
+            train
+        )
+    })
 }
 
 /// Whether `t`'s column depends on its joint's position beyond the rigid-body model.
@@ -129,5 +165,66 @@ mod tests {
         );
         let plain = vec![Term::new(Effect::Viscous, 0)];
         assert!(beyond(&identify(plain, &shifted)).is_empty());
+    }
+
+    /// The oracle is the files' own clocks: a validation file twice as long as the training
+    /// one warns, naming the drift and both durations; the training run itself and a model
+    /// without a drift do not.
+    #[test]
+    fn a_validation_run_longer_than_the_training_runs_is_named_where_a_drift_is_extrapolated() {
+        let arm = crate::arms::resolve("planar2").unwrap();
+        let spec = Spec::new(arm.dh_table().unwrap(), 5)
+            .with_effect(Effect::Viscous, 1, 0.4)
+            .with_effect(Effect::Drift, 1, 0.02);
+        let long = generate(&spec);
+        let half = long.t.len() / 2;
+        let mut train = long.clone();
+        train.t.truncate(half);
+        train.q.truncate(half * long.dof);
+        for v in [&mut train.dq, &mut train.ddq, &mut train.tau]
+            .into_iter()
+            .flatten()
+        {
+            v.truncate(half * long.dof);
+        }
+        let identify = |terms: Vec<Term>, val: &crate::data::Trajectory| {
+            let cfg = Config {
+                effects: EffectsSpec::Fixed(terms),
+                ..Config::default()
+            };
+            let out = run(
+                &arm,
+                vec![Log::from(train.clone())],
+                Some(Log::from(val.clone())),
+                &cfg,
+            );
+            let w = out.unwrap().warnings;
+            w.into_iter()
+                .filter(|w| w.contains("levelled off"))
+                .collect::<Vec<_>>()
+        };
+        let drift = vec![Term::new(Effect::Viscous, 1), Term::new(Effect::Drift, 1)];
+        assert!(identify(drift.clone(), &train).is_empty());
+        let w = identify(drift, &long);
+        assert_eq!(w.len(), 1, "{w:?}");
+        assert!(w[0].contains("drift2"), "{w:?}");
+        // The two durations named, each within the samples the filters' edges drop (≤ 5 %).
+        let after = |key: &str| -> f64 {
+            let rest = &w[0][w[0].find(key).unwrap() + key.len()..];
+            rest.split(' ').next().unwrap().parse().unwrap()
+        };
+        let (t_long, t_train) = (
+            long.t[long.t.len() - 1] - long.t[0],
+            train.t[half - 1] - train.t[0],
+        );
+        assert!(
+            (after("runs ") / t_long - 1.0).abs() < 0.05,
+            "{w:?} {t_long}"
+        );
+        assert!(
+            (after("at most ") / t_train - 1.0).abs() < 0.05,
+            "{w:?} {t_train}"
+        );
+        assert!(identify(vec![Term::new(Effect::Viscous, 1)], &long).is_empty());
     }
 }

@@ -150,11 +150,7 @@ fn relevant(
 ) -> Result<Option<select::Evidence>, IdentifyError> {
     let (subset, w, prefixes, cur) = select::fitted(p, terms).map_err(IdentifyError::Rank)?;
     let ev = select::evidence(p, terms, (&subset, &prefixes), &w, &cur, unit, f64::NAN);
-    Ok(
-        ev.filter(|e| {
-            e.heldout_gain >= cfg.rules.min_gain && e.torque_share >= cfg.rules.min_share
-        }),
-    )
+    Ok(ev.filter(|e| cfg.rules.relevant(e)))
 }
 
 /// The joint F test of `unit`'s coefficients fitted with the model `terms` and the joint's

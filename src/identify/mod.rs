@@ -434,6 +434,9 @@ fn run_prepared_with(
     out.warnings = identifiability::warnings((&lo, &hi), table);
     out.warnings
         .extend(extrapolation::warnings((&lo, &hi), val, &terms));
+    let trained = extrapolation::duration(&files);
+    out.warnings
+        .extend(extrapolation::time_warning(trained, val, &terms));
     if let Some(g) = &guard {
         out.warnings.extend(g.weak.iter().map(|w| w.reason.clone()));
         out.warnings.extend(

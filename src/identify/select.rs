@@ -68,6 +68,19 @@ impl Default for Rules {
     }
 }
 
+impl Rules {
+    /// The practical rule: the candidate lowers its joint's held-out error by at least
+    /// `min_gain` and explains at least `min_share` of its torque power (NaN fails).
+    pub fn relevant(&self, e: &Evidence) -> bool {
+        e.heldout_gain >= self.min_gain && e.torque_share >= self.min_share
+    }
+
+    /// The search's acceptance: the block test passes and the rule above holds.
+    pub fn passes(&self, e: &Evidence) -> bool {
+        e.t_stat > e.t_crit && self.relevant(e)
+    }
+}
+
 /// The evidence for (or against) one candidate at one step.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Evidence {
@@ -219,10 +232,7 @@ pub fn select_units(
                 add_collinear(&mut collinear, u.iter().map(Term::label));
                 continue;
             };
-            let passes = ev.t_stat > ev.t_crit
-                && ev.heldout_gain >= rules.min_gain
-                && ev.torque_share >= rules.min_share;
-            if passes
+            if rules.passes(&ev)
                 && best_pass
                     .as_ref()
                     .is_none_or(|b| ev.heldout_gain > b.heldout_gain)
@@ -541,14 +551,9 @@ fn group_step(
         for t in tested {
             evs.extend(t?);
         }
-        let passes = |e: &Evidence| {
-            e.t_stat > e.t_crit
-                && e.heldout_gain >= rules.min_gain
-                && e.torque_share >= rules.min_share
-        };
         match evs
             .iter()
-            .filter(|e| !passes(e))
+            .filter(|e| !rules.passes(e))
             .min_by(|a, b| a.t_stat.total_cmp(&b.t_stat))
         {
             Some(weak) => {
