@@ -50,7 +50,7 @@ def inverse_dynamics_jacobians(sym: Symbols, tau: list[Scalar]) -> tuple[ca.SX, 
 def inverse_dynamics_jvp(sym: Symbols, tau: list[Scalar]) -> tuple[ca.SX, ca.SX]:
     """``(d, ∂τ/∂x · d)``: the directional derivative of the inverse-dynamics expressions ``tau``
     along ``d = (δq, δq̇)`` (``2n`` symbols), at fixed ``q̈`` — one forward sweep for any direction,
-    so that a kernel evaluating it on eight unit directions at once (one per lane) gives eight
+    so that a kernel evaluating it on four unit directions at once (one per lane) gives four
     columns of ``(∂τ/∂q, ∂τ/∂q̇)``."""
     n = sym.dof
     inputs, seeds = joint_tangents(sym)

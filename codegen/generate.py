@@ -213,44 +213,74 @@ def _emit_part(kernel: str, part: Part) -> tuple[str, Emitted]:
     return ",".join(map(str, trig)), Emitted(name, "\n".join(lines), body.mul, body.add)
 
 
-# Directions per call of the directional-derivative part: one per lane of an AVX-512 register.
-WIDE = 8
+# Directions per call of the directional-derivative part: one per lane of a four-lane AVX pack.
+# Measured on this machine (AMD EPYC, Zen 4, whose AVX-512 issues each 512-bit operation as two
+# 256-bit halves), Panda, same binary: ∂ID 523-559 ns with four lanes against 654-655 with eight
+# (AVX-512) and 805 fused; ∂FD 859-916 against 925-934 and 1155.
+LANES = 4
 # A kernel gets its compact scalar form from this many operations of the fused one (about 8.5
 # bytes of machine code each, against a 32 KiB L1i). Measured: Panda (8683) 1026-1043 ns against
 # 1256-1317 fused; PUMA 560 (5112) 915-1342 against 717-721, slower, so it keeps the fused kernel.
 COMPACT_MIN_OPS = 6000
-# The compact forms' wide halves exist where the crate is built with FMA on x86-64.
-_FMA_CFG = '#[cfg(all(target_arch = "x86_64", target_feature = "fma"))]'
+# The compact forms' lane part runs as AVX code where the crate is built with AVX and FMA on
+# x86-64 (elsewhere a pack is four scalars, which LLVM does not vectorise: the fused kernel then).
+_AVX_CFG = '#[cfg(all(target_arch = "x86_64", target_feature = "avx", target_feature = "fma"))]'
+_NO_AVX_CFG = '#[cfg(not(all(target_arch = "x86_64", target_feature = "avx", target_feature = "fma")))]'
 
 
 def _calls(n: int) -> int:
-    """Eight-lane calls that cover the `2n` unit directions of `(q, q̇)`."""
-    return -(-2 * n // WIDE)
+    """Four-lane calls that cover the `2n` unit directions of `(q, q̇)`."""
+    return -(-2 * n // LANES)
 
 
 def _dispatch(doc: str, name: str, sig: str, args: str) -> str:
-    """The public kernel of a compact form: `<name>_wide` where the CPU has AVX-512F, else
-    `<name>_fused` (the straight-line kernel)."""
+    """The public kernel of a compact form: `<name>_wide` where the crate is built with AVX and
+    FMA, else `<name>_fused` (the straight-line kernel)."""
     return f"""{doc}
 #[inline]
 pub fn {name}({sig}) {{
-    {_FMA_CFG}
-    if crate::pack::wide::avx512() {{
-        // SAFETY: `avx512()` checked that the CPU has AVX-512F.
-        return unsafe {{ {name}_wide({args}) }};
-    }}
-    {name}_fused({args})
+    {_AVX_CFG}
+    {name}_wide({args});
+    {_NO_AVX_CFG}
+    {name}_fused({args});
 }}
 """
 
 
+def _columns(jvp: str, calls: int, store: list[str]) -> list[str]:
+    """The loop that evaluates `jvp` (a lane copy) on the unit directions, four per call, one per
+    lane, handing each lane's column `c` (rows `r`, value `v[l]`) to the `store` lines."""
+    return [
+        f"    for g in 0..{calls} {{",
+        "        let d: [Pack; 2 * DOF] = core::array::from_fn(|c| {",
+        f"            Pack::new(core::array::from_fn(|l| if c == {LANES} * g + l {{ 1.0 }} else {{ 0.0 }}))",
+        "        });",
+        "        let mut col = [Pack::splat(0.0); DOF];",
+        f"        {jvp}::<Pack, true>(&t, &q, &dq, &ddq, &theta, &d, &mut col);",
+        "        for r in 0..DOF {",
+        "            let v = col[r].to_array();",
+        f"            for l in 0..{LANES}.min(2 * DOF - {LANES} * g) {{",
+        f"                let c = {LANES} * g + l;",
+        *[f"                {ln}" for ln in store],
+        "            }",
+        "        }",
+        "    }",
+    ]
+
+
+_SPLAT = (
+    "    let (t, q, dq, ddq, theta) = (t.map(Pack::splat), q.map(Pack::splat), dq.map(Pack::splat),"
+    " ddq.map(Pack::splat), theta.map(Pack::splat));"
+)
+
+
 def _compact(arm: DhTable, k: Kernel, fused: str) -> str:
     """`forward_dynamics_derivatives` as less code per call (docs/derivatives.md: the fused kernel
-    is bound by instruction fetch). With AVX-512: `q̈` and `M⁻¹` from one straight-line part, the
+    is bound by instruction fetch). With AVX: `q̈` and `M⁻¹` from one straight-line part, the
     columns of `(∂τ/∂q, ∂τ/∂q̇)` from the directional-derivative part of inverse dynamics evaluated
-    on eight unit directions at once (its lane copy, one direction per lane, `⌈2n/8⌉` calls), then
-    `∂q̈/∂x = −M⁻¹ ∂τ/∂x` in a loop. Without AVX-512, and in the lane forms, the fused
-    straight-line kernel `<kernel>_fused`."""
+    on four unit directions at once (its lane copy, one direction per lane, `⌈2n/4⌉` calls), then
+    `∂q̈/∂x = −M⁻¹ ∂τ/∂x` in a loop. Without AVX, and in the lane forms, the fused straight-line
+    kernel `<kernel>_fused`."""
     n, name = arm.dof, k.name
     parts = [_emit_part(name, p) for p in k.parts]
     used = sorted({int(j) for trig, _ in parts for j in trig.split(",") if j})
@@ -259,21 +289,20 @@ def _compact(arm: DhTable, k: Kernel, fused: str) -> str:
     t = ", ".join(f"c{i + 1}, s{i + 1}" if i in used else "0.0, 0.0" for i in range(n))
     sig = ", ".join(k.args + [f"out: &mut [f64; {k.out_len}]"])
     args = "q, dq, tau, theta, out"
-    cfg = _FMA_CFG
     ops = (
-        f"part_fdm {fdm.mul} / {fdm.add}, part_jvp {jvp.mul} / {jvp.add} ({calls} calls of {WIDE} lanes), "
+        f"part_fdm {fdm.mul} / {fdm.add}, part_jvp {jvp.mul} / {jvp.add} ({calls} calls of {LANES} lanes), "
         f"and the {2 * n}·{n}² products"
     )
-    doc = f"/// Compact scalar form ({ops}): with AVX-512 `{name}_wide`, else `{name}_fused`."
+    doc = f"/// Compact scalar form ({ops}): with AVX `{name}_wide`, else `{name}_fused`."
     head = (
         _dispatch(doc, name, sig, args)
         + f"""
-/// `q̈` and `M⁻¹` (`{name}_part_fdm`), `∂τ/∂x` eight unit directions per call
+/// `q̈` and `M⁻¹` (`{name}_part_fdm`), `∂τ/∂x` four unit directions per call
 /// (`{name}_part_jvp_lanes`), `∂q̈/∂x = −M⁻¹ ∂τ/∂x`.
-{cfg}
-#[target_feature(enable = "avx512f")]
+{_AVX_CFG}
+#[inline(never)]
 fn {name}_wide({sig}) {{
-    use crate::pack::wide::{{as_zmm, as_zmm_mut, Pack8, Zmm}};
+    use crate::pack::Pack;
 """
     )
     body = [f"    {ln}" for ln in _trig_prelude(arm, used)]
@@ -282,29 +311,10 @@ fn {name}_wide({sig}) {{
         "    let mut a = [0.0; DOF + DOF * DOF];",
         f"    {name}_part_fdm(&t, q, dq, tau, theta, &mut a);",
         "    let ddq: [f64; DOF] = core::array::from_fn(|i| a[i]);",
-        "    let (t, q, dq, ddq, theta) = (t.map(Pack8::splat), q.map(Pack8::splat), dq.map(Pack8::splat),"
-        " ddq.map(Pack8::splat), theta.map(Pack8::splat));",
+        _SPLAT,
         "    // j[r][c] = ∂τ_r/∂x_c, x = (q, q̇).",
         "    let mut j = [[0.0; 2 * DOF]; DOF];",
-        f"    for g in 0..{calls} {{",
-        "        let d: [Pack8; 2 * DOF] = core::array::from_fn(|c| {",
-        f"            Pack8::new(core::array::from_fn(|l| if c == {WIDE} * g + l {{ 1.0 }} else {{ 0.0 }}))",
-        "        });",
-        "        let mut col = [Pack8::splat(0.0); DOF];",
-        "        // SAFETY: compiled with AVX-512F, called only where the CPU has it.",
-        "        unsafe {",
-        f"            {name}_part_jvp_lanes::<Zmm, true>(",
-        "                as_zmm(&t), as_zmm(&q), as_zmm(&dq), as_zmm(&ddq), as_zmm(&theta), as_zmm(&d),",
-        "                as_zmm_mut(&mut col),",
-        "            );",
-        "        }",
-        "        for r in 0..DOF {",
-        "            let v = col[r].to_array();",
-        f"            for l in 0..{WIDE}.min(2 * DOF - {WIDE} * g) {{",
-        f"                j[r][{WIDE} * g + l] = v[l];",
-        "            }",
-        "        }",
-        "    }",
+        *_columns(f"{name}_part_jvp_lanes", calls, ["j[r][c] = v[l];"]),
         "    for r in 0..DOF {",
         "        for c in 0..2 * DOF {",
         "            let mut acc = 0.0;",
@@ -323,8 +333,8 @@ fn {name}_wide({sig}) {{
 
 def _compact_id(dof: int, emitted: list[Emitted]) -> list[Emitted]:
     """Where `forward_dynamics_derivatives` has its compact form, `inverse_dynamics_derivatives`
-    gets one from the same directional-derivative part: with AVX-512 its `⌈2n/8⌉` eight-lane calls
-    on the unit directions are the columns of `(∂τ/∂q, ∂τ/∂q̇)`, less code per call than the
+    gets one from the same directional-derivative part: with AVX its `⌈2n/4⌉` four-lane calls on
+    the unit directions are the columns of `(∂τ/∂q, ∂τ/∂q̇)`, less code per call than the
     straight-line kernel (which stays as `inverse_dynamics_derivatives_fused`)."""
     by = {e.name: e for e in emitted}
     fdd, idd = by.get("forward_dynamics_derivatives"), by.get("inverse_dynamics_derivatives")
@@ -332,56 +342,29 @@ def _compact_id(dof: int, emitted: list[Emitted]) -> list[Emitted]:
         return emitted
     wide = fdd.code.split("fn forward_dynamics_derivatives_wide(", 1)[1]
     lines = wide.splitlines()
-    start = next(i for i, ln in enumerate(lines) if ln.strip().startswith("use crate::pack::wide"))
+    start = next(i for i, ln in enumerate(lines) if ln.strip().startswith("use crate::pack::Pack"))
     end = next(i for i, ln in enumerate(lines) if ln.strip().startswith("let t = ["))
     setup = lines[start + 1 : end + 1]
     name, jvp = idd.name, "forward_dynamics_derivatives_part_jvp_lanes"
     n_calls = _calls(dof)
     sig = "q: &[f64; DOF], dq: &[f64; DOF], ddq: &[f64; DOF], theta: &[f64; NB], out: &mut [f64; 2 * DOF * DOF]"
     args = "q, dq, ddq, theta, out"
-    cfg = _FMA_CFG
-    splat = "let (t, q, dq, ddq, theta) = ({});".format(
-        ", ".join(f"{v}.map(Pack8::splat)" for v in ("t", "q", "dq", "ddq", "theta"))
-    )
     doc = (
-        f"/// Compact scalar form (`{jvp}`, {n_calls} calls of {WIDE} lanes on unit directions): with\n"
-        f"/// AVX-512 `{name}_wide`, else `{name}_fused`."
+        f"/// Compact scalar form (`{jvp}`, {n_calls} calls of {LANES} lanes on unit directions): with\n"
+        f"/// AVX `{name}_wide`, else `{name}_fused`."
     )
+    store = ["out[(c / DOF) * DOF * DOF + r * DOF + c % DOF] = v[l];"]
     code = (
         _dispatch(doc, name, sig, args)
         + f"""
-/// `(∂τ/∂q, ∂τ/∂q̇)`, eight columns per call of `{jvp}` (one unit direction per lane).
-{cfg}
-#[target_feature(enable = "avx512f")]
+/// `(∂τ/∂q, ∂τ/∂q̇)`, four columns per call of `{jvp}` (one unit direction per lane).
+{_AVX_CFG}
+#[inline(never)]
 fn {name}_wide({sig}) {{
-    use crate::pack::wide::{{as_zmm, as_zmm_mut, Pack8, Zmm}};
+    use crate::pack::Pack;
 """
-        + "\n".join(setup)
-        + f"""
-    {splat}
-    for g in 0..{n_calls} {{
-        let d: [Pack8; 2 * DOF] = core::array::from_fn(|c| {{
-            Pack8::new(core::array::from_fn(|l| if c == {WIDE} * g + l {{ 1.0 }} else {{ 0.0 }}))
-        }});
-        let mut col = [Pack8::splat(0.0); DOF];
-        // SAFETY: compiled with AVX-512F, called only where the CPU has it.
-        unsafe {{
-            {jvp}::<Zmm, true>(
-                as_zmm(&t), as_zmm(&q), as_zmm(&dq), as_zmm(&ddq), as_zmm(&theta), as_zmm(&d),
-                as_zmm_mut(&mut col),
-            );
-        }}
-        for r in 0..DOF {{
-            let v = col[r].to_array();
-            for l in 0..{WIDE}.min(2 * DOF - {WIDE} * g) {{
-                let c = {WIDE} * g + l;
-                out[(c / DOF) * DOF * DOF + r * DOF + c % DOF] = v[l];
-            }}
-        }}
-    }}
-}}
-
-"""
+        + "\n".join(setup + [_SPLAT, *_columns(jvp, n_calls, store), "}"])
+        + "\n\n"
         + idd.code.replace(f"pub fn {name}(", f"pub fn {name}_fused(", 1)
     )
     return [Emitted(e.name, code, e.mul, e.add) if e is idd else e for e in emitted]

@@ -160,8 +160,8 @@ fn inverse_dynamics_derivatives_are_the_derivatives_of_inverse_dynamics() {
     }
 }
 
-/// The compact scalar form of `inverse_dynamics_derivatives` (the Panda's, since generator 0.3.4:
-/// with AVX-512, eight directional derivatives of inverse dynamics per call) is the fused
+/// The compact scalar form of `inverse_dynamics_derivatives` (the Panda's, since generator 0.3.4;
+/// with AVX, four directional derivatives of inverse dynamics per call since 0.3.7) is the fused
 /// straight-line kernel to rounding: 1e-12 relative to the largest entry.
 #[test]
 fn inverse_dynamics_derivatives_compact_form_is_the_fused_kernel() {
@@ -183,8 +183,8 @@ fn inverse_dynamics_derivatives_compact_form_is_the_fused_kernel() {
     }
 }
 
-/// The compact scalar form of `forward_dynamics_derivatives` (with AVX-512: `q̈`, `M⁻¹` and
-/// eight directional derivatives of inverse dynamics per call; `codegen/FORMAT.md`) is the fused
+/// The compact scalar form of `forward_dynamics_derivatives` (with AVX: `q̈`, `M⁻¹` and four
+/// directional derivatives of inverse dynamics per call; `codegen/FORMAT.md`) is the fused
 /// straight-line kernel to rounding: 1e-12 relative to the largest entry.
 #[test]
 fn forward_dynamics_derivatives_compact_form_is_the_fused_kernel() {
