@@ -122,6 +122,23 @@ mod tests {
     use crate::identify::{run, Config};
     use crate::log::Log;
 
+    /// The warnings of a fit of `terms` on `train`, validated on `val`.
+    fn warnings_of(
+        train: &crate::data::Trajectory,
+        val: &crate::data::Trajectory,
+        terms: Vec<Term>,
+    ) -> Vec<String> {
+        let arm = crate::arms::resolve("planar2").unwrap();
+        let cfg = Config {
+            effects: EffectsSpec::Fixed(terms),
+            ..Config::default()
+        };
+        let logs = vec![Log::from(train.clone())];
+        run(&arm, logs, Some(Log::from(val.clone())), &cfg)
+            .unwrap()
+            .warnings
+    }
+
     /// The oracle is a known shift: the training run itself as validation gives no warning; the
     /// same run with joint 1's positions moved by 1 rad warns for the joint whose model holds a
     /// spring, naming it, and not for a model without one.
@@ -136,19 +153,8 @@ mod tests {
         for k in 0..shifted.t.len() {
             shifted.q[k * shifted.dof] += 1.0;
         }
-        let identify = |terms: Vec<Term>, val: &crate::data::Trajectory| {
-            let cfg = Config {
-                effects: EffectsSpec::Fixed(terms),
-                ..Config::default()
-            };
-            let out = run(
-                &arm,
-                vec![Log::from(train.clone())],
-                Some(Log::from(val.clone())),
-                &cfg,
-            );
-            out.unwrap().warnings
-        };
+        let identify =
+            |terms: Vec<Term>, val: &crate::data::Trajectory| warnings_of(&train, val, terms);
         let spring = vec![Term::new(Effect::Viscous, 0), Term::new(Effect::Spring, 0)];
         let beyond = |w: &[String]| {
             w.iter()
@@ -188,17 +194,7 @@ mod tests {
             v.truncate(half * long.dof);
         }
         let identify = |terms: Vec<Term>, val: &crate::data::Trajectory| {
-            let cfg = Config {
-                effects: EffectsSpec::Fixed(terms),
-                ..Config::default()
-            };
-            let out = run(
-                &arm,
-                vec![Log::from(train.clone())],
-                Some(Log::from(val.clone())),
-                &cfg,
-            );
-            let w = out.unwrap().warnings;
+            let w = warnings_of(&train, val, terms);
             w.into_iter()
                 .filter(|w| w.contains("levelled off"))
                 .collect::<Vec<_>>()
