@@ -3,4 +3,4 @@
 Run ``python -m codegen [ARM ...]`` from the repository root; see ``codegen/FORMAT.md`` for the output.
 """
 
-GENERATOR_VERSION = "0.3.7"
+GENERATOR_VERSION = "0.3.8"

@@ -219,9 +219,11 @@ def _emit_part(kernel: str, part: Part) -> tuple[str, Emitted]:
 # (AVX-512) and 805 fused; ∂FD 859-916 against 925-934 and 1155.
 LANES = 4
 # A kernel gets its compact scalar form from this many operations of the fused one (about 8.5
-# bytes of machine code each, against a 32 KiB L1i). Measured: Panda (8683) 1026-1043 ns against
-# 1256-1317 fused; PUMA 560 (5112) 915-1342 against 717-721, slower, so it keeps the fused kernel.
-COMPACT_MIN_OPS = 6000
+# bytes of machine code each, against a 32 KiB L1i). Measured with four-lane calls (0.3.8): PUMA 560
+# ∂FD (4806) 416-446 ns against 692-696 fused; its ∂ID (3179) from the same part 285-297 against
+# 279, so a ∂ID under this many operations keeps its fused kernel too; the Panda (7719 and 5314)
+# as in docs/derivatives.md. (With eight-lane calls, 0.3.0, PUMA's ∂FD was slower.)
+COMPACT_MIN_OPS = 4000
 # The compact forms' lane part runs as AVX code where the crate is built with AVX and FMA on
 # x86-64 (elsewhere a pack is four scalars, which LLVM does not vectorise: the fused kernel then).
 _AVX_CFG = '#[cfg(all(target_arch = "x86_64", target_feature = "avx", target_feature = "fma"))]'
@@ -339,6 +341,8 @@ def _compact_id(dof: int, emitted: list[Emitted]) -> list[Emitted]:
     by = {e.name: e for e in emitted}
     fdd, idd = by.get("forward_dynamics_derivatives"), by.get("inverse_dynamics_derivatives")
     if fdd is None or idd is None or "fn forward_dynamics_derivatives_wide(" not in fdd.code:
+        return emitted
+    if idd.mul + idd.add < COMPACT_MIN_OPS:
         return emitted
     wide = fdd.code.split("fn forward_dynamics_derivatives_wide(", 1)[1]
     lines = wide.splitlines()
