@@ -226,8 +226,9 @@ LANES = 4
 COMPACT_MIN_OPS = 4000
 # The compact forms' lane part runs as AVX code where the crate is built with AVX and FMA on
 # x86-64 (elsewhere a pack is four scalars, which LLVM does not vectorise: the fused kernel then).
-_AVX_CFG = '#[cfg(all(target_arch = "x86_64", target_feature = "avx", target_feature = "fma"))]'
-_NO_AVX_CFG = '#[cfg(not(all(target_arch = "x86_64", target_feature = "avx", target_feature = "fma")))]'
+_AVX = 'all(target_arch = "x86_64", target_feature = "avx", target_feature = "fma")'
+_AVX_CFG = f"#[cfg({_AVX})]"
+_NO_AVX_CFG = f"#[cfg(not({_AVX}))]"
 
 
 def _calls(n: int) -> int:
