@@ -80,16 +80,27 @@ pub fn sin_cos(x: f64) -> (f64, f64) {
     // `sin_cos_n(&[x])` in effect, but the rare paths take `x` by value, in a register: passing
     // them an array (or a reference) made every call store `x` to the stack first, in the hot
     // path — six times per PUMA 560 kernel.
-    // NaN fails the comparison too.
-    let fast = x.abs() <= FAST_PATH_MAX;
-    if !fast {
-        return sin_cos_std_one(x);
+    #[cfg(all(target_arch = "x86_64", target_feature = "avx", target_feature = "fma"))]
+    {
+        // Both values in one register's two lanes (`pair`): the same values, fewer instructions.
+        match pair::sin_cos(x) {
+            Some(sc) => sc,
+            None => sin_cos_rare_one(x),
+        }
     }
-    let (s, c) = sin_cos_lanes_with([x, 0.0, 0.0, 0.0], || {
-        let (s, c) = sin_cos_exact_one(x);
-        ([s, 0.0, 0.0, 0.0], [c, 0.0, 0.0, 0.0])
-    });
-    (s[0], c[0])
+    #[cfg(not(all(target_arch = "x86_64", target_feature = "avx", target_feature = "fma")))]
+    {
+        // NaN fails the comparison too.
+        let fast = x.abs() <= FAST_PATH_MAX;
+        if !fast {
+            return sin_cos_std_one(x);
+        }
+        let (s, c) = sin_cos_lanes_with([x, 0.0, 0.0, 0.0], || {
+            let (s, c) = sin_cos_exact_one(x);
+            ([s, 0.0, 0.0, 0.0], [c, 0.0, 0.0, 0.0])
+        });
+        (s[0], c[0])
+    }
 }
 
 /// [`sin_cos`] of four values from one evaluation of the four-lane polynomial: the same values
@@ -97,18 +108,43 @@ pub fn sin_cos(x: f64) -> (f64, f64) {
 /// [`sin_cos`] one by one, out of line).
 #[inline(always)]
 pub fn sin_cos4(a: f64, b: f64, c: f64, d: f64) -> [(f64, f64); 4] {
-    let fast = (a.abs() <= FAST_PATH_MAX)
-        & (b.abs() <= FAST_PATH_MAX)
-        & (c.abs() <= FAST_PATH_MAX)
-        & (d.abs() <= FAST_PATH_MAX);
-    if !fast {
-        return sin_cos4_each(a, b, c, d);
+    // With AVX2, the register form: the array form's fallback closure kept its captures on the
+    // stack in the hot path, and LLVM assembled its quadrant step from lane permutations (a third
+    // of a 2-DOF kernel's instructions).
+    #[cfg(all(
+        target_arch = "x86_64",
+        target_feature = "avx2",
+        target_feature = "fma"
+    ))]
+    {
+        use std::arch::x86_64::{__m256d, _mm256_setr_pd};
+        // SAFETY: the crate is compiled with AVX (the `cfg` above); register operations.
+        let Some((s, co)) = avx::sin_cos(unsafe { _mm256_setr_pd(a, b, c, d) }) else {
+            return sin_cos4_each(a, b, c, d);
+        };
+        // SAFETY: a `__m256d` is four `f64`s.
+        let [s, co] = unsafe { std::mem::transmute::<[__m256d; 2], [[f64; 4]; 2]>([s, co]) };
+        [(s[0], co[0]), (s[1], co[1]), (s[2], co[2]), (s[3], co[3])]
     }
-    let (s, co) = sin_cos_lanes_with([a, b, c, d], || {
-        let e = sin_cos4_each(a, b, c, d);
-        (e.map(|p| p.0), e.map(|p| p.1))
-    });
-    [(s[0], co[0]), (s[1], co[1]), (s[2], co[2]), (s[3], co[3])]
+    #[cfg(not(all(
+        target_arch = "x86_64",
+        target_feature = "avx2",
+        target_feature = "fma"
+    )))]
+    {
+        let fast = (a.abs() <= FAST_PATH_MAX)
+            & (b.abs() <= FAST_PATH_MAX)
+            & (c.abs() <= FAST_PATH_MAX)
+            & (d.abs() <= FAST_PATH_MAX);
+        if !fast {
+            return sin_cos4_each(a, b, c, d);
+        }
+        let (s, co) = sin_cos_lanes_with([a, b, c, d], || {
+            let e = sin_cos4_each(a, b, c, d);
+            (e.map(|p| p.0), e.map(|p| p.1))
+        });
+        [(s[0], co[0]), (s[1], co[1]), (s[2], co[2]), (s[3], co[3])]
+    }
 }
 
 /// [`sin_cos`] of three values from one evaluation of the four-lane polynomial ([`sin_cos4`]
@@ -126,59 +162,23 @@ pub fn sin_cos2(a: f64, b: f64) -> [(f64, f64); 2] {
     [x, y]
 }
 
-/// [`sin_cos`] of up to eight values (`N ≤ 8`), bit for bit one call each: where the crate is
-/// compiled with AVX-512F, one evaluation of the eight-lane polynomial (`avx512::sin_cos`, the
-/// same operations), for a 5- to 8-joint kernel about a quarter of the instructions of a
-/// [`sin_cos4`] and one [`sin_cos`] per joint left; elsewhere two [`sin_cos4`]. A value the fast
-/// path does not cover sends all of them through [`sin_cos`] one by one, out of line.
+/// [`sin_cos`] of up to eight values (`N ≤ 8`), bit for bit one call each: two [`sin_cos4`].
+///
+/// Not one eight-lane (AVX-512) evaluation, though that is a quarter fewer instructions: on Intel
+/// cores a 512-bit instruction in flight shuts one of the vector ports for everything else, and
+/// the rest of a kernel is scalar floating point. On a Rocket Lake Xeon the eight-lane form made
+/// the PUMA 560 kernels 1.4–1.7× slower (inverse dynamics 99 against 59 ns per call), where on an
+/// AMD EPYC (Zen 4) it had made the Panda's 1.09–1.5× faster. Choosing by CPU inside the inlined
+/// kernels does not work: LLVM then assembles the eight values in a 512-bit register before the
+/// branch, on Intel too (PUMA 560 gravity 20 → 51 ns).
 #[inline(always)]
 pub fn sin_cos8<const N: usize>(x: [f64; N]) -> [(f64, f64); N] {
     const { assert!(N <= 8) };
     // Element by element: the lanes are assembled in registers (see `sin_cos_n`).
     let v: [f64; 8] = std::array::from_fn(|i| if i < N { x[i] } else { 0.0 });
-    #[cfg(all(
-        target_arch = "x86_64",
-        target_feature = "avx512f",
-        target_feature = "fma"
-    ))]
-    let (s, c) = {
-        use std::arch::x86_64::{__m512d, _mm512_setr_pd};
-        // SAFETY: the crate is compiled with AVX-512F (the `cfg` above); register operations.
-        let fast = unsafe {
-            avx512::sin_cos(_mm512_setr_pd(
-                v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7],
-            ))
-        };
-        let Some((s, c)) = fast else {
-            return sin_cos8_each(x);
-        };
-        // SAFETY: a `__m512d` is eight `f64`s.
-        unsafe {
-            (
-                std::mem::transmute::<__m512d, [f64; 8]>(s),
-                std::mem::transmute::<__m512d, [f64; 8]>(c),
-            )
-        }
-    };
-    #[cfg(not(all(
-        target_arch = "x86_64",
-        target_feature = "avx512f",
-        target_feature = "fma"
-    )))]
-    let (s, c) = {
-        let lo = sin_cos4(v[0], v[1], v[2], v[3]);
-        let hi = sin_cos4(v[4], v[5], v[6], v[7]);
-        let all: [(f64, f64); 8] = std::array::from_fn(|i| if i < 4 { lo[i] } else { hi[i - 4] });
-        (all.map(|p| p.0), all.map(|p| p.1))
-    };
-    std::array::from_fn(|i| (s[i], c[i]))
-}
-
-#[cold]
-#[inline(never)]
-#[allow(dead_code)] // only the AVX-512F form calls it
-fn sin_cos8_each<const N: usize>(x: [f64; N]) -> [(f64, f64); N] {
-    x.map(sin_cos)
+    let lo = sin_cos4(v[0], v[1], v[2], v[3]);
+    let hi = sin_cos4(v[4], v[5], v[6], v[7]);
+    std::array::from_fn(|i| if i < 4 { lo[i] } else { hi[i - 4] })
 }
 
 #[cold]
@@ -191,6 +191,19 @@ fn sin_cos4_each(a: f64, b: f64, c: f64, d: f64) -> [(f64, f64); 4] {
 #[inline(never)]
 fn sin_cos_std_one(x: f64) -> (f64, f64) {
     (x.sin(), x.cos())
+}
+
+/// [`sin_cos`] off the two-lane fast path: the standard library beyond [`FAST_PATH_MAX`] (and for
+/// NaN), else the exact reduction.
+#[cfg(all(target_arch = "x86_64", target_feature = "avx", target_feature = "fma"))]
+#[cold]
+#[inline(never)]
+fn sin_cos_rare_one(x: f64) -> (f64, f64) {
+    if x.abs() <= FAST_PATH_MAX {
+        sin_cos_exact_one(x)
+    } else {
+        sin_cos_std_one(x)
+    }
 }
 
 #[cold]
@@ -473,102 +486,10 @@ pub(crate) mod avx {
     }
 }
 
-/// The fast path of [`sin_cos_lanes`] on one AVX-512 register (eight lanes), the same operations
-/// as [`avx::sin_cos`] (so bit for bit the same values): for the eight-lane kernels of
-/// [`crate::pack::wide`]. Compiled wherever the crate has FMA, called only from functions compiled
-/// with AVX-512F after the CPU was checked for it (`crate::pack::wide::avx512`).
 #[cfg(all(target_arch = "x86_64", target_feature = "fma"))]
-pub(crate) mod avx512 {
-    use super::*;
-    use std::arch::x86_64::*;
-
-    // Helpers as `#[inline(always)]` functions, not closures: a closure is a function of its own,
-    // without the caller's target features, and LLVM then leaves the AVX-512 intrinsics in it as
-    // calls in builds whose crate-wide features lack AVX-512 (seen: `_mm512_fmadd_pd` and
-    // `_mm512_set1_pd` out of line, the eight-lane kernels 3-6× slower).
-    #[inline(always)]
-    fn set(v: f64) -> __m512d {
-        // SAFETY: see `sin_cos`'s contract; inlined into it.
-        unsafe { _mm512_set1_pd(v) }
-    }
-
-    #[inline(always)]
-    fn bits(v: __m512d) -> __m512i {
-        // SAFETY: a bit cast.
-        unsafe { _mm512_castpd_si512(v) }
-    }
-
-    /// `(c0 + c1·z) + z²·(c2 + c3·z) + z⁴·(c4 + c5·z)` as [`super::kernel`] evaluates it.
-    #[inline(always)]
-    fn poly(z: __m512d, z2: __m512d, z4: __m512d, c: [f64; 6]) -> __m512d {
-        // SAFETY: see `sin_cos`'s contract; inlined into it.
-        unsafe {
-            let a = _mm512_fmadd_pd(set(c[1]), z, set(c[0]));
-            let b = _mm512_fmadd_pd(set(c[3]), z, set(c[2]));
-            let c = _mm512_fmadd_pd(set(c[5]), z, set(c[4]));
-            _mm512_fmadd_pd(z4, c, _mm512_fmadd_pd(z2, b, a))
-        }
-    }
-
-    /// `(sin x, cos x)` of the eight lanes, or `None` when a lane needs the standard library or
-    /// the exact reduction (`|x| > FAST_PATH_MAX`, NaN, or more than 16 bits cancelled).
-    ///
-    /// # Safety
-    /// The CPU must have AVX-512F (inlined into a function compiled with it).
-    #[inline(always)]
-    pub(crate) unsafe fn sin_cos(x: __m512d) -> Option<(__m512d, __m512d)> {
-        // SAFETY: the caller guarantees AVX-512F; register operations only.
-        unsafe {
-            let sign = _mm512_set1_epi64(SIGN as i64);
-            let ax = _mm512_castsi512_pd(_mm512_andnot_si512(sign, bits(x)));
-            if _mm512_cmp_pd_mask::<_CMP_LE_OQ>(ax, set(FAST_PATH_MAX)) != 0xFF {
-                return None;
-            }
-            let t = _mm512_fmadd_pd(ax, set(INV_PIO2), set(TOINT));
-            let f = _mm512_sub_pd(t, set(TOINT));
-            // mul_add(-f, PIO2_1, a): fnmadd rounds −(f·c) + a once, the same value.
-            let r = _mm512_fnmadd_pd(f, set(PIO2_1), ax);
-            let w = _mm512_mul_pd(f, set(PIO2_1T));
-            let y0 = _mm512_sub_pd(r, w);
-            let ay0 = _mm512_castsi512_pd(_mm512_andnot_si512(sign, bits(y0)));
-            if _mm512_cmp_pd_mask::<_CMP_LT_OQ>(ay0, _mm512_mul_pd(ax, set(CANCEL_16))) != 0 {
-                return None;
-            }
-            let y1 = _mm512_sub_pd(_mm512_sub_pd(r, y0), w);
-            // kernel
-            let z = _mm512_mul_pd(y0, y0);
-            let z2 = _mm512_mul_pd(z, z);
-            let z4 = _mm512_mul_pd(z2, z2);
-            let p = poly(z, z2, z4, [S1, S2, S3, S4, S5, S6]);
-            let q = poly(z, z2, z4, [C1, C2, C3, C4, C5, C6]);
-            let v = _mm512_mul_pd(z, y0);
-            let hz = _mm512_mul_pd(set(0.5), z);
-            let tail = _mm512_fnmadd_pd(hz, y1, y1);
-            let s = _mm512_add_pd(y0, _mm512_fmadd_pd(v, p, tail));
-            let one_m_hz = _mm512_sub_pd(set(1.0), hz);
-            let small =
-                _mm512_fnmadd_pd(y0, y1, _mm512_sub_pd(_mm512_sub_pd(set(1.0), one_m_hz), hz));
-            let c = _mm512_add_pd(one_m_hz, _mm512_fmadd_pd(z2, q, small));
-            // quadrant
-            let n = bits(t);
-            let one = _mm512_set1_epi64(1);
-            let two = _mm512_set1_epi64(2);
-            let swap = _mm512_sub_epi64(_mm512_setzero_si512(), _mm512_and_si512(n, one));
-            let (sb, cb) = (bits(s), bits(c));
-            let s2 = _mm512_or_si512(_mm512_andnot_si512(swap, sb), _mm512_and_si512(cb, swap));
-            let c2 = _mm512_or_si512(_mm512_andnot_si512(swap, cb), _mm512_and_si512(sb, swap));
-            let s_sign = _mm512_xor_si512(
-                _mm512_slli_epi64::<62>(_mm512_and_si512(n, two)),
-                _mm512_and_si512(bits(x), sign),
-            );
-            let c_sign = _mm512_slli_epi64::<62>(_mm512_and_si512(_mm512_add_epi64(n, one), two));
-            Some((
-                _mm512_castsi512_pd(_mm512_xor_si512(s2, s_sign)),
-                _mm512_castsi512_pd(_mm512_xor_si512(c2, c_sign)),
-            ))
-        }
-    }
-}
+pub(crate) mod avx512;
+#[cfg(all(target_arch = "x86_64", target_feature = "avx", target_feature = "fma"))]
+mod pair;
 
 #[cfg(test)]
 mod tests {
