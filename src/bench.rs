@@ -151,6 +151,18 @@ pub enum BenchError {
 /// (its payload is not the default NaN's).
 const UNWRITTEN: f64 = f64::from_bits(0x7ff8_dead_beef_0001);
 
+/// Sample `k mod POOL` of a pool column of `POOL · dof` values, without bounds checks: the timing
+/// loops take three samples per call, and their checks (six branches) were a tenth of a 2-DOF
+/// kernel's time; the C harnesses index with bare pointer arithmetic.
+#[inline(always)]
+fn sample(column: &[f64], k: usize, dof: usize) -> &[f64] {
+    let start = (k & (POOL - 1)) * dof;
+    assert!(column.len() == POOL * dof);
+    // SAFETY: `start + dof ≤ (POOL − 1)·dof + dof = column.len()`, checked just above (the check
+    // is hoisted out of the timing loops, where `column` and `dof` do not change).
+    unsafe { column.get_unchecked(start..start + dof) }
+}
+
 /// The random input pool of the Pinocchio harness: `POOL` samples of `(q, q̇, q̈)`.
 #[derive(Debug, Clone)]
 pub struct SamplePool {
@@ -184,22 +196,19 @@ impl SamplePool {
     /// Positions of sample `k` (any `k`; taken modulo the pool size).
     #[inline(always)]
     pub fn q(&self, k: usize) -> &[f64] {
-        let k = k & (POOL - 1);
-        &self.q[k * self.dof..(k + 1) * self.dof]
+        sample(&self.q, k, self.dof)
     }
 
     /// Velocities of sample `k`.
     #[inline(always)]
     pub fn dq(&self, k: usize) -> &[f64] {
-        let k = k & (POOL - 1);
-        &self.dq[k * self.dof..(k + 1) * self.dof]
+        sample(&self.dq, k, self.dof)
     }
 
     /// Accelerations of sample `k`.
     #[inline(always)]
     pub fn ddq(&self, k: usize) -> &[f64] {
-        let k = k & (POOL - 1);
-        &self.ddq[k * self.dof..(k + 1) * self.dof]
+        sample(&self.ddq, k, self.dof)
     }
 }
 
