@@ -80,7 +80,11 @@ pub fn sin_cos(x: f64) -> (f64, f64) {
     // `sin_cos_n(&[x])` in effect, but the rare paths take `x` by value, in a register: passing
     // them an array (or a reference) made every call store `x` to the stack first, in the hot
     // path — six times per PUMA 560 kernel.
-    #[cfg(all(target_arch = "x86_64", target_feature = "avx", target_feature = "fma"))]
+    #[cfg(all(
+        target_arch = "x86_64",
+        target_feature = "avx2",
+        target_feature = "fma"
+    ))]
     {
         // Both values in one register's two lanes (`pair`): the same values, fewer instructions.
         match pair::sin_cos(x) {
@@ -88,7 +92,11 @@ pub fn sin_cos(x: f64) -> (f64, f64) {
             None => sin_cos_rare_one(x),
         }
     }
-    #[cfg(not(all(target_arch = "x86_64", target_feature = "avx", target_feature = "fma")))]
+    #[cfg(not(all(
+        target_arch = "x86_64",
+        target_feature = "avx2",
+        target_feature = "fma"
+    )))]
     {
         // NaN fails the comparison too.
         let fast = x.abs() <= FAST_PATH_MAX;
@@ -158,8 +166,30 @@ pub fn sin_cos3(a: f64, b: f64, c: f64) -> [(f64, f64); 3] {
 /// [`sin_cos`] of two values from one evaluation of the four-lane polynomial (see [`sin_cos3`]).
 #[inline(always)]
 pub fn sin_cos2(a: f64, b: f64) -> [(f64, f64); 2] {
-    let [x, y, _, _] = sin_cos4(a, b, 0.0, 0.0);
-    [x, y]
+    #[cfg(all(
+        target_arch = "x86_64",
+        target_feature = "avx2",
+        target_feature = "fma"
+    ))]
+    {
+        // Both values' sines and cosines in one register (`pair`): the same values.
+        match pair::sin_cos2(a, b) {
+            Some(v) => v,
+            None => {
+                let [x, y, _, _] = sin_cos4_each(a, b, 0.0, 0.0);
+                [x, y]
+            }
+        }
+    }
+    #[cfg(not(all(
+        target_arch = "x86_64",
+        target_feature = "avx2",
+        target_feature = "fma"
+    )))]
+    {
+        let [x, y, _, _] = sin_cos4(a, b, 0.0, 0.0);
+        [x, y]
+    }
 }
 
 /// [`sin_cos`] of up to eight values (`N ≤ 8`), bit for bit one call each: two [`sin_cos4`].
@@ -195,7 +225,11 @@ fn sin_cos_std_one(x: f64) -> (f64, f64) {
 
 /// [`sin_cos`] off the two-lane fast path: the standard library beyond [`FAST_PATH_MAX`] (and for
 /// NaN), else the exact reduction.
-#[cfg(all(target_arch = "x86_64", target_feature = "avx", target_feature = "fma"))]
+#[cfg(all(
+    target_arch = "x86_64",
+    target_feature = "avx2",
+    target_feature = "fma"
+))]
 #[cold]
 #[inline(never)]
 fn sin_cos_rare_one(x: f64) -> (f64, f64) {
@@ -488,7 +522,11 @@ pub(crate) mod avx {
 
 #[cfg(all(target_arch = "x86_64", target_feature = "fma"))]
 pub(crate) mod avx512;
-#[cfg(all(target_arch = "x86_64", target_feature = "avx", target_feature = "fma"))]
+#[cfg(all(
+    target_arch = "x86_64",
+    target_feature = "avx2",
+    target_feature = "fma"
+))]
 mod pair;
 
 #[cfg(test)]
