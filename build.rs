@@ -6,9 +6,10 @@
 //! `python3 -m codegen <arm>...` run (the generator writes atomically, only changed content).
 //! Then `$OUT_DIR/arms.rs` gets one `dynid_macros::arm!(<arm>);` per arm plus `ALL`, which
 //! `src/arms.rs` includes. Adding an arm = adding its TOML and running `cargo build`.
+//! It also chooses the kernels' sine/cosine form for the build's CPU (`zmm_trig`).
 //!
 //! Environment: `DYNID_PYTHON` overrides the interpreter (default: `.venv/bin/python` when
-//! `scripts/test.sh` has made it, else `python3`).
+//! `scripts/test.sh` has made it, else `python3`); `DYNID_ZMM_TRIG` the sine/cosine form.
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -21,6 +22,44 @@ struct Arm {
     name: String,
     toml: PathBuf,
     generated: PathBuf,
+}
+
+/// `cfg(dynid_zmm_trig)`: `trig::sin_cos8` as one eight-lane AVX-512 evaluation, for a build
+/// whose target has AVX-512F and is this machine, an AMD CPU (its 512-bit instructions do not slow
+/// the scalar code beside them; an Intel core's do — see `trig::sin_cos8`). The values are the
+/// same either way. `DYNID_ZMM_TRIG=1` or `0` overrides the choice.
+fn zmm_trig() {
+    println!("cargo::rustc-check-cfg=cfg(dynid_zmm_trig)");
+    println!("cargo:rerun-if-env-changed=DYNID_ZMM_TRIG");
+    let features = std::env::var("CARGO_CFG_TARGET_FEATURE").unwrap_or_default();
+    let avx512 = features.split(',').any(|f| f == "avx512f");
+    let native = std::env::var("TARGET").ok() == std::env::var("HOST").ok();
+    let on = match std::env::var("DYNID_ZMM_TRIG").as_deref() {
+        Ok("1") => true,
+        Ok("0") => false,
+        _ => avx512 && native && host_is_amd(),
+    };
+    if on {
+        println!("cargo:rustc-cfg=dynid_zmm_trig");
+    }
+}
+
+/// Whether the CPU running the build is an AMD one (CPUID leaf 0's vendor string).
+#[cfg(target_arch = "x86_64")]
+fn host_is_amd() -> bool {
+    // SAFETY: CPUID is part of x86-64.
+    #[allow(unused_unsafe)]
+    let r = unsafe { std::arch::x86_64::__cpuid(0) };
+    let vendor: Vec<u8> = [r.ebx, r.edx, r.ecx]
+        .iter()
+        .flat_map(|w| w.to_le_bytes())
+        .collect();
+    vendor == b"AuthenticAMD"
+}
+
+#[cfg(not(target_arch = "x86_64"))]
+fn host_is_amd() -> bool {
+    false
 }
 
 fn main() {
@@ -37,6 +76,7 @@ fn run() -> Result<(), String> {
     let arms_dir = manifest.join("arms");
     let codegen = manifest.join("codegen");
 
+    zmm_trig();
     println!("cargo:rerun-if-changed=arms");
     println!("cargo:rerun-if-env-changed=DYNID_PYTHON");
     // Individual generator files, not the directory: pytest and __pycache__ would retrigger.

@@ -192,23 +192,41 @@ pub fn sin_cos2(a: f64, b: f64) -> [(f64, f64); 2] {
     }
 }
 
-/// [`sin_cos`] of up to eight values (`N ≤ 8`), bit for bit one call each: two [`sin_cos4`].
+/// [`sin_cos`] of up to eight values (`N ≤ 8`), bit for bit one call each: two [`sin_cos4`], or
+/// one eight-lane (AVX-512) evaluation (`avx512::sin_cos8`) where the build chose it
+/// (`cfg(dynid_zmm_trig)`, set by build.rs for an AMD CPU with AVX-512 building for itself).
 ///
-/// Not one eight-lane (AVX-512) evaluation, though that is a quarter fewer instructions: on Intel
-/// cores a 512-bit instruction in flight shuts one of the vector ports for everything else, and
-/// the rest of a kernel is scalar floating point. On a Rocket Lake Xeon the eight-lane form made
-/// the PUMA 560 kernels 1.4–1.7× slower (inverse dynamics 99 against 59 ns per call), where on an
-/// AMD EPYC (Zen 4) it had made the Panda's 1.09–1.5× faster. Choosing by CPU inside the inlined
-/// kernels does not work: LLVM then assembles the eight values in a 512-bit register before the
-/// branch, on Intel too (PUMA 560 gravity 20 → 51 ns).
+/// The eight-lane form is a quarter fewer instructions, and on an AMD EPYC (Zen 4) it made the
+/// Panda's kernels 1.09–1.5× faster. On Intel cores a 512-bit instruction in flight shuts one of
+/// the vector ports for everything else, and the rest of a kernel is scalar floating point: on a
+/// Rocket Lake Xeon it made the PUMA 560 kernels 1.4–1.7× slower (inverse dynamics 99 against
+/// 59 ns per call). Hence a build-time choice: choosing by CPU at run time inside the inlined
+/// kernels does not work, LLVM assembles the eight values in a 512-bit register before the
+/// branch (PUMA 560 gravity 20 → 51 ns on Intel).
 #[inline(always)]
 pub fn sin_cos8<const N: usize>(x: [f64; N]) -> [(f64, f64); N] {
     const { assert!(N <= 8) };
     // Element by element: the lanes are assembled in registers (see `sin_cos_n`).
     let v: [f64; 8] = std::array::from_fn(|i| if i < N { x[i] } else { 0.0 });
-    let lo = sin_cos4(v[0], v[1], v[2], v[3]);
-    let hi = sin_cos4(v[4], v[5], v[6], v[7]);
-    std::array::from_fn(|i| if i < 4 { lo[i] } else { hi[i - 4] })
+    #[cfg(all(
+        dynid_zmm_trig,
+        target_arch = "x86_64",
+        target_feature = "avx512f",
+        target_feature = "fma"
+    ))]
+    let all = avx512::sin_cos8(v);
+    #[cfg(not(all(
+        dynid_zmm_trig,
+        target_arch = "x86_64",
+        target_feature = "avx512f",
+        target_feature = "fma"
+    )))]
+    let all = {
+        let lo = sin_cos4(v[0], v[1], v[2], v[3]);
+        let hi = sin_cos4(v[4], v[5], v[6], v[7]);
+        std::array::from_fn::<_, 8, _>(|i| if i < 4 { lo[i] } else { hi[i - 4] })
+    };
+    std::array::from_fn(|i| all[i])
 }
 
 #[cold]
