@@ -132,6 +132,9 @@ pub struct Sampling<'a> {
     pub stride: usize,
     pub map_stride: Option<usize>,
     pub models: &'a [usize],
+    /// The model (index into the judged models) whose held-out prediction — by the fit without
+    /// the sample's block — each sample also carries, after `models`' (when it has one).
+    pub heldout: Option<usize>,
 }
 
 /// [`raw_sums_each`], handing `sink` in the same pass the samples `sampling` asks for (see
@@ -189,6 +192,15 @@ pub fn raw_sums_sampled(
             let sets = a.models.iter().map(|&m| placed[m].first).collect();
             (a, sets)
         });
+        // The held-out sets of `sampling.heldout`: the first block's, and how many blocks (a
+        // model without held-out fits gives its full-data one, as one block: the rows keep
+        // their width).
+        let heldout = sampling
+            .and_then(|a| a.heldout)
+            .map(|m| match placed[m].heldout {
+                true => (placed[m].block_set(0), nblocks),
+                false => (placed[m].first, 1),
+            });
         let cores = raw_cores(p);
         for cores in cores.chunks(batch) {
             let parts: Vec<(Vec<RawSums>, Vec<f64>)> = cores
@@ -228,7 +240,7 @@ pub fn raw_sums_sampled(
                         if let Some((a, sets)) = &sampled {
                             if pass == p.smoothing.filtered_prediction {
                                 let strides = (a.stride, a.map_stride);
-                                pc.push_samples(p, core, strides, sets, &mut picked);
+                                pc.push_samples(p, core, strides, (sets, heldout), &mut picked);
                             }
                         }
                     }

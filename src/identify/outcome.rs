@@ -474,6 +474,7 @@ impl Models {
                 stride: train_stride,
                 map_stride: Some(map_stride),
                 models: &states[..2],
+                heldout: Some(states[1]),
             }),
             &mut |file, s| train_samples.take(file, s),
         );
@@ -566,6 +567,7 @@ fn judge_validation(
             stride: 1,
             map_stride: None,
             models: states,
+            heldout: None,
         }),
         &mut |_, s| sink.take(s),
     );

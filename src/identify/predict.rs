@@ -125,13 +125,15 @@ impl Predicted {
     /// for) that is a `stride`-th or a `map_stride`-th one of the file's used samples, one
     /// [`SampleRow`]: which strides it is of, its index among the used samples, t, q̇ (n,
     /// interpolated from the window's estimated states — estimated now when the rows came from a
-    /// table), τ (n), the prediction of each of `sets` (n each), then q and q̈ (n each).
+    /// table), τ (n), the prediction of each of `sets` (n each), with `heldout = (first, blocks)`
+    /// the prediction of set `first + b` for a sample of block `b` (n: the fit without the
+    /// sample's block), then q and q̈ (n each).
     pub(super) fn push_samples(
         &mut self,
         p: &Prepared,
         core: (usize, usize),
         (stride, map_stride): (usize, Option<usize>),
-        sets: &[usize],
+        (sets, heldout): (&[usize], Option<(usize, usize)>),
         out: &mut Vec<f64>,
     ) {
         let n = p.dof();
@@ -162,6 +164,11 @@ impl Predicted {
             out.extend_from_slice(tau);
             for &m in sets {
                 out.extend((0..n).map(|j| this.at(m, j, (k, s))));
+            }
+            if let Some((first, blocks)) = heldout {
+                // The block as the held-out sums assign it (`evaluate::add_core`).
+                let set = first + p.block_of(k + usize::from(s >= 0.5), blocks);
+                out.extend((0..n).map(|j| this.at(set, j, (k, s))));
             }
             for d in st.q[..n].iter().chain(&st.ddq[..n]) {
                 out.push(interpolate(d, i, s));
@@ -276,8 +283,9 @@ fn sample_width(n: usize, sets: usize) -> usize {
 }
 
 /// The training samples the judging pass hands over ([`Predicted::push_samples`] of the rigid
-/// and the final model, files in order): those of the plot series' stride kept as
-/// [`Series::from_samples`] reads them, those of the maps' stride as [`MapSamples`].
+/// and the final model, and the final model's held-out prediction, files in order): those of
+/// the plot series' stride kept as [`Series::from_samples`] reads them, those of the maps'
+/// stride as [`MapSamples`].
 pub(super) struct TrainSamples {
     dof: usize,
     pub(super) series: Vec<f64>,
@@ -304,7 +312,7 @@ impl TrainSamples {
     /// Whole samples of training file `file`, in order.
     pub(super) fn take(&mut self, file: usize, samples: &[f64]) {
         let n = self.dof;
-        for x in samples.chunks_exact(sample_width(n, 2)) {
+        for x in samples.chunks_exact(sample_width(n, 3)) {
             let which = x[0] as u8;
             if which & 1 != 0 {
                 // t, q̇, τ, rigid and final model.
@@ -318,8 +326,8 @@ impl TrainSamples {
 }
 
 /// The samples of the residual maps: per sample its (file, index among the file's map samples)
-/// and time since the file's start, per joint q, q̇, q̈, the final model's τ̂ and the residual
-/// τ − τ̂ (in that order).
+/// and time since the file's start, per joint q, q̇, q̈, the final model's τ̂ and its held-out
+/// residual τ − τ̂₋ᵦ, τ̂₋ᵦ the prediction of the fit without the sample's block (in that order).
 pub(super) struct MapSamples {
     every: usize,
     t0: Vec<f64>,
@@ -334,12 +342,12 @@ impl MapSamples {
         self.time
             .push(x[2] - self.t0.get(file).copied().unwrap_or(f64::NAN));
         let (dq, tau) = (&x[3..3 + n], &x[3 + n..3 + 2 * n]);
-        let after = &x[3 + 3 * n..3 + 4 * n];
-        let (q, ddq) = (&x[3 + 4 * n..3 + 5 * n], &x[3 + 5 * n..3 + 6 * n]);
+        let (after, heldout) = (&x[3 + 3 * n..3 + 4 * n], &x[3 + 4 * n..3 + 5 * n]);
+        let (q, ddq) = (&x[3 + 5 * n..3 + 6 * n], &x[3 + 6 * n..3 + 7 * n]);
         for (j, v) in self.vars.iter_mut().enumerate() {
             for (c, value) in v
                 .iter_mut()
-                .zip([q[j], dq[j], ddq[j], after[j], tau[j] - after[j]])
+                .zip([q[j], dq[j], ddq[j], after[j], tau[j] - heldout[j]])
             {
                 c.push(value);
             }

@@ -4,12 +4,16 @@
 //! the bin means against zero ([`ResidualMap::p_value`]): where the means leave zero beyond their
 //! bands, the model misses something that depends on that variable.
 //!
-//! What is binned ([`super::Outcome::residual_maps`]): the **final model's** residual on the
-//! **training** samples — the same prediction as the residual-vs-velocity plot, at every
-//! `every`-th used raw sample. It is a diagnostic for the user, not the effect search's test: the search
-//! ([`super::select()`]) judges each candidate by its *held-out* gain over time blocks, and these
-//! in-sample bins of the fitted model are not what it tests (a fitted effect's own signature is
-//! already projected out of them).
+//! What is binned ([`super::Outcome::residual_maps`]): the **final model's held-out** residual
+//! on the **training** samples, at every `every`-th used raw sample — each sample predicted by
+//! the fit without its time block, the prediction whose error the effect search
+//! ([`super::select()`]) compares block by block and the guard pools. So a map shows the
+//! residual the loop tested, not the in-sample one, from which least squares has already taken
+//! every fitted column's own shape (in-sample, a missed effect that a fitted column resembles
+//! hides; held out, what that column could not carry to new data stays). The maps are not a
+//! gate of the search: on the extended suite's fits of the true effects, in-sample position maps
+//! departed from zero (p < 0.01) in 35 % of cases (0 of 23 on effect-free cases) — the
+//! vocabulary's columns do not match the simulated shapes exactly.
 //!
 //! **The band is for autocorrelated residuals.** A residual is correlated in time (filtered
 //! states, slow unmodelled effects), so `n` samples in a bin carry less than `n` independent

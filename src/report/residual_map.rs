@@ -34,12 +34,12 @@ pub fn json(o: &Outcome) -> (Value, Value) {
         })
         .collect();
     let info = json!({
-        "residual": "tau measured - tau predicted by the final (after) model, training files, the prediction of the errors above",
+        "residual": "tau measured - tau predicted by the final (after) model fitted without the sample's time block (held out), training files, the prediction of the errors above: the residual whose per-block errors the effect search and the guard compare",
         "every": r.every,
         "samples": r.samples,
         "bins": "12 equal-count bins of the variable (one per file for run); lo/hi/centre: min/max/mean of the variable in the bin",
         "band": "95 % band of the bin mean: mean +- t(n_eff - 1) * std / sqrt(n_eff), n_eff = n^2 / sum_ik rho^|t_i - t_k| (AR(1) with rho the lag-1 autocorrelation of the residual about the bin means; n * n_eff_factor for a contiguous bin), within [2, n]",
-        "test": "chi2 = sum over bins of (mean / (std / sqrt(n_eff)))^2, p_value = P(chi2_dof >= chi2): small when the bin means depart from zero beyond their bands. A diagnostic of the fitted model on its training data; the effect search tests held-out gains over time blocks, not these bins",
+        "test": "chi2 = sum over bins of (mean / (std / sqrt(n_eff)))^2, p_value = P(chi2_dof >= chi2): small when the bin means depart from zero beyond their bands. A diagnostic of the final model on held-out training data; the effect search tests held-out gains over the same time blocks, not these bins",
     });
     (Value::Array(maps), info)
 }
@@ -62,7 +62,7 @@ pub fn section(m: &mut String, o: &Outcome) {
     let _ = writeln!(m, "\n## Residual maps\n");
     let _ = writeln!(
         m,
-        "The final model's torque residual (measured − predicted) on the training data ({} samples{}) binned per joint against q, dq/dt (signed), d2q/dt2, time since the start of its file, the file (run) and the joint's own predicted torque: each dot is a bin's mean residual, the shaded band its 95 % confidence interval (widened for the residual's autocorrelation), so a run of dots whose band stays off the zero line is torque the model does not explain as a function of that variable. These maps are a diagnostic of the fitted model on its own training data; the effect search did not test them — it added effects by their held-out gain over time blocks (above). Tables in `report.json` (`residual_maps`).\n",
+        "The final model's held-out torque residual (measured − predicted by the fit without the sample's time block) on the training data ({} samples{}) binned per joint against q, dq/dt (signed), d2q/dt2, time since the start of its file, the file (run) and the joint's own predicted torque: each dot is a bin's mean residual, the shaded band its 95 % confidence interval (widened for the residual's autocorrelation), so a run of dots whose band stays off the zero line is torque the model does not carry to data it was not fitted on, as a function of that variable. It is the residual the effect search compared block by block (above); the bins themselves are a diagnostic, not the search's test. Tables in `report.json` (`residual_maps`).\n",
         r.samples,
         if r.every > 1 {
             format!(", one in every {} used samples", r.every)
