@@ -129,6 +129,26 @@ pub fn section(m: &mut String, o: &Outcome) {
     for f in &g.fixes {
         let _ = writeln!(m, "\nGuard: {f}.");
     }
+    // Where the plain fit still wins: what the held-out residual maps show on that joint.
+    for jg in g.joints.iter().filter(|jg| jg.winner == "plain") {
+        let j = jg.joint;
+        let off = super::residual_map::departing(o, j);
+        let (means, unit) = super::residual_map::run_means(o, j);
+        let runs: Vec<String> = means
+            .iter()
+            .map(|(mean, lo, hi)| format!("{mean:+.3e} {unit} [{lo:+.3e}, {hi:+.3e}]"))
+            .collect();
+        // The cause reads "joint N: …": the paragraph starts with what follows.
+        let cause = jg.cause.as_deref().unwrap_or_default();
+        let why = cause.split_once(": ").map_or(cause, |(_, why)| why);
+        let _ = writeln!(
+            m,
+            "\nJoint {}: {why}. Its held-out residual maps (section \"Residual maps\") depart from zero on {}; its mean held-out residual per training file, with 95 % band: {} — a band off zero is a constant the model lacks and the plain fit's offset would take; a departing velocity or acceleration map, friction or rotor inertia.",
+            j + 1,
+            if off.is_empty() { "no variable".to_string() } else { off.join(", ") },
+            runs.join(", "),
+        );
+    }
     if let Some(p) = &o.after.train.pooled_joints {
         let names: Vec<String> = p.iter().map(|j| (j + 1).to_string()).collect();
         let _ = writeln!(

@@ -75,11 +75,7 @@ pub fn section(m: &mut String, o: &Outcome) {
         "| joint | maps whose means depart from zero (χ² p < {DEPARTS_P}) |\n|---|---|"
     );
     for j in 0..o.dof {
-        let off: Vec<String> = joint_maps(o, j)
-            .iter()
-            .filter(|m| m.p_value < DEPARTS_P)
-            .map(|m| format!("{} (p = {:.1e})", label(m.variable, j), m.p_value))
-            .collect();
+        let off = departing(o, j);
         let _ = writeln!(
             m,
             "| {} | {} |",
@@ -96,6 +92,31 @@ pub fn section(m: &mut String, o: &Outcome) {
         let f = file_name(j);
         let _ = writeln!(m, "![{f}]({f})\n");
     }
+}
+
+/// Joint `j`'s maps whose bin means depart from zero (p < [`DEPARTS_P`]), as `name (p = …)`.
+pub fn departing(o: &Outcome, j: usize) -> Vec<String> {
+    joint_maps(o, j)
+        .iter()
+        .filter(|m| m.p_value < DEPARTS_P)
+        .map(|m| format!("{} (p = {:.1e})", label(m.variable, j), m.p_value))
+        .collect()
+}
+
+/// Joint `j`'s mean held-out residual per training file with its 95 % band (the run map's bins),
+/// and the torque's unit (the predicted-torque map's).
+pub fn run_means(o: &Outcome, j: usize) -> (Vec<(f64, f64, f64)>, String) {
+    let maps = joint_maps(o, j);
+    let unit = maps
+        .iter()
+        .find(|m| m.variable == Variable::Torque)
+        .map_or(String::new(), |m| m.unit.clone());
+    let means = maps
+        .iter()
+        .filter(|m| m.variable == Variable::Run)
+        .flat_map(|m| m.bins.iter().map(|b| (b.mean, b.ci95_lo, b.ci95_hi)))
+        .collect();
+    (means, unit)
 }
 
 /// The variable's plain-ASCII name for joint `j` (common SVG fonts lose combining dots).
@@ -129,7 +150,7 @@ pub fn plot(o: &Outcome, j: usize) -> Result<String, String> {
         let root = root
             .titled(
                 &format!(
-                    "joint {}: final model's training residual, binned (mean and 95 % band)",
+                    "joint {}: final model's held-out residual on the training data, binned (mean and 95 % band)",
                     j + 1
                 ),
                 ("sans-serif", 20),
