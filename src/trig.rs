@@ -686,7 +686,8 @@ mod tests {
     #[test]
     fn sin_cos8_is_sin_cos_calls_bit_for_bit() {
         // Each position holds, in turn, each kind of value of the test above, the others all
-        // another: whatever they hold, each value is `sin_cos`'s, for eight values and fewer.
+        // another: whatever they hold, each value is `sin_cos`'s, for eight values and fewer,
+        // in the form `sin_cos8` uses and (on AVX-512 builds) the eight-lane one.
         let xs = [0.5, -2.0, PI, 1e300, f64::NAN, -0.0, 1e-310, 1.0e6, -3.0];
         let same = |a: f64, b: f64| a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan());
         for &x in &xs {
@@ -695,6 +696,12 @@ mod tests {
                     let mut v = [fill; 8];
                     v[p] = x;
                     let want = v.map(sin_cos);
+                    // The eight-lane form too, whichever one `sin_cos8` uses in this build.
+                    #[cfg(all(target_feature = "avx512f", target_feature = "fma"))]
+                    for (i, (got, w)) in avx512::sin_cos8(v).iter().zip(&want).enumerate() {
+                        let ok = same(got.0, w.0) && same(got.1, w.1);
+                        assert!(ok, "eight lanes: {x} at {p} among {fill}: {i}");
+                    }
                     let five = sin_cos8([v[0], v[1], v[2], v[3], v[4]]);
                     for (i, (got, w)) in sin_cos8(v)
                         .iter()
