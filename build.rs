@@ -24,15 +24,24 @@ struct Arm {
     generated: PathBuf,
 }
 
-/// `cfg(dynid_zmm_trig)`: `trig::sin_cos8` as one eight-lane AVX-512 evaluation, for a build
+/// The target's vector forms, as cfgs. `cfg(dynid_zmm_trig)`: `trig::sin_cos8` as one eight-lane
+/// AVX-512 evaluation, for a build
 /// whose target has AVX-512F and is this machine, an AMD CPU (its 512-bit instructions do not slow
 /// the scalar code beside them; an Intel core's do — see `trig::sin_cos8`). The values are the
 /// same either way. `DYNID_ZMM_TRIG=1` or `0` overrides the choice.
 fn zmm_trig() {
     println!("cargo::rustc-check-cfg=cfg(dynid_zmm_trig)");
+    println!("cargo::rustc-check-cfg=cfg(dynid_avx)");
     println!("cargo:rerun-if-env-changed=DYNID_ZMM_TRIG");
     let features = std::env::var("CARGO_CFG_TARGET_FEATURE").unwrap_or_default();
-    let avx512 = features.split(',').any(|f| f == "avx512f");
+    let has = |feature: &str| features.split(',').any(|f| f == feature);
+    // `cfg(dynid_avx)`: the target is x86-64 with AVX2 and FMA, what the four-lane and SSE-pair
+    // sine/cosine forms need (one name for the condition `trig` and `pack` test in many places).
+    let x86_64 = std::env::var("CARGO_CFG_TARGET_ARCH").is_ok_and(|a| a == "x86_64");
+    if x86_64 && has("avx2") && has("fma") {
+        println!("cargo:rustc-cfg=dynid_avx");
+    }
+    let avx512 = has("avx512f");
     let native = std::env::var("TARGET").ok() == std::env::var("HOST").ok();
     let on = match std::env::var("DYNID_ZMM_TRIG").as_deref() {
         Ok("1") => true,

@@ -299,26 +299,14 @@ pub fn store_zero<L: Lane>(dst: &mut L) {
 /// the same values bit for bit.
 #[inline(always)]
 pub fn sin_cos(x: Pack) -> (Pack, Pack) {
-    #[cfg(all(
-        target_arch = "x86_64",
-        target_feature = "avx2",
-        target_feature = "fma"
-    ))]
+    #[cfg(dynid_avx)]
     if let Some((s, c)) = crate::trig::avx::sin_cos(x.0) {
         return (Pack(s), Pack(c));
     }
     sin_cos_slow(x)
 }
 
-#[cfg_attr(
-    all(
-        target_arch = "x86_64",
-        target_feature = "avx2",
-        target_feature = "fma"
-    ),
-    cold,
-    inline(never)
-)]
+#[cfg_attr(dynid_avx, cold, inline(never))]
 fn sin_cos_slow(x: Pack) -> (Pack, Pack) {
     // Lane by lane through the scalar function (not `sin_cos_n` of all four, which sends every
     // lane to the standard library when one needs it): each lane equals the scalar kernel's.

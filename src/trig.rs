@@ -80,11 +80,7 @@ pub fn sin_cos(x: f64) -> (f64, f64) {
     // `sin_cos_n(&[x])` in effect, but the rare paths take `x` by value, in a register: passing
     // them an array (or a reference) made every call store `x` to the stack first, in the hot
     // path — six times per PUMA 560 kernel.
-    #[cfg(all(
-        target_arch = "x86_64",
-        target_feature = "avx2",
-        target_feature = "fma"
-    ))]
+    #[cfg(dynid_avx)]
     {
         // Both values in one register's two lanes (`pair`): the same values, fewer instructions.
         match pair::sin_cos(x) {
@@ -92,11 +88,7 @@ pub fn sin_cos(x: f64) -> (f64, f64) {
             None => sin_cos_rare_one(x),
         }
     }
-    #[cfg(not(all(
-        target_arch = "x86_64",
-        target_feature = "avx2",
-        target_feature = "fma"
-    )))]
+    #[cfg(not(dynid_avx))]
     {
         // NaN fails the comparison too.
         let fast = x.abs() <= FAST_PATH_MAX;
@@ -119,11 +111,7 @@ pub fn sin_cos4(a: f64, b: f64, c: f64, d: f64) -> [(f64, f64); 4] {
     // With AVX2, the register form: the array form's fallback closure kept its captures on the
     // stack in the hot path, and LLVM assembled its quadrant step from lane permutations (a third
     // of a 2-DOF kernel's instructions).
-    #[cfg(all(
-        target_arch = "x86_64",
-        target_feature = "avx2",
-        target_feature = "fma"
-    ))]
+    #[cfg(dynid_avx)]
     {
         use std::arch::x86_64::{__m256d, _mm256_setr_pd};
         // SAFETY: the crate is compiled with AVX (the `cfg` above); register operations.
@@ -134,11 +122,7 @@ pub fn sin_cos4(a: f64, b: f64, c: f64, d: f64) -> [(f64, f64); 4] {
         let [s, co] = unsafe { std::mem::transmute::<[__m256d; 2], [[f64; 4]; 2]>([s, co]) };
         [(s[0], co[0]), (s[1], co[1]), (s[2], co[2]), (s[3], co[3])]
     }
-    #[cfg(not(all(
-        target_arch = "x86_64",
-        target_feature = "avx2",
-        target_feature = "fma"
-    )))]
+    #[cfg(not(dynid_avx))]
     {
         let fast = (a.abs() <= FAST_PATH_MAX)
             & (b.abs() <= FAST_PATH_MAX)
@@ -166,11 +150,7 @@ pub fn sin_cos3(a: f64, b: f64, c: f64) -> [(f64, f64); 3] {
 /// [`sin_cos`] of two values from one evaluation of the four-lane polynomial (see [`sin_cos3`]).
 #[inline(always)]
 pub fn sin_cos2(a: f64, b: f64) -> [(f64, f64); 2] {
-    #[cfg(all(
-        target_arch = "x86_64",
-        target_feature = "avx2",
-        target_feature = "fma"
-    ))]
+    #[cfg(dynid_avx)]
     {
         // Both values' sines and cosines in one register (`pair`): the same values.
         match pair::sin_cos2(a, b) {
@@ -181,11 +161,7 @@ pub fn sin_cos2(a: f64, b: f64) -> [(f64, f64); 2] {
             }
         }
     }
-    #[cfg(not(all(
-        target_arch = "x86_64",
-        target_feature = "avx2",
-        target_feature = "fma"
-    )))]
+    #[cfg(not(dynid_avx))]
     {
         let [x, y, _, _] = sin_cos4(a, b, 0.0, 0.0);
         [x, y]
@@ -243,11 +219,7 @@ fn sin_cos_std_one(x: f64) -> (f64, f64) {
 
 /// [`sin_cos`] off the two-lane fast path: the standard library beyond [`FAST_PATH_MAX`] (and for
 /// NaN), else the exact reduction.
-#[cfg(all(
-    target_arch = "x86_64",
-    target_feature = "avx2",
-    target_feature = "fma"
-))]
+#[cfg(dynid_avx)]
 #[cold]
 #[inline(never)]
 fn sin_cos_rare_one(x: f64) -> (f64, f64) {
@@ -460,11 +432,7 @@ fn quadrant(x: &Lanes, t: &Lanes, s: &Lanes, c: &Lanes) -> (Lanes, Lanes) {
 /// The fast path of [`sin_cos_lanes`] on one AVX register, instruction for instruction the same
 /// operations (so bit for bit the same values): for the lane-batched kernels of
 /// [`crate::pack`], where LLVM does not vectorise the array form inside a long kernel.
-#[cfg(all(
-    target_arch = "x86_64",
-    target_feature = "avx2",
-    target_feature = "fma"
-))]
+#[cfg(dynid_avx)]
 pub(crate) mod avx {
     use super::*;
     use std::arch::x86_64::*;
@@ -540,11 +508,7 @@ pub(crate) mod avx {
 
 #[cfg(all(target_arch = "x86_64", target_feature = "fma"))]
 pub(crate) mod avx512;
-#[cfg(all(
-    target_arch = "x86_64",
-    target_feature = "avx2",
-    target_feature = "fma"
-))]
+#[cfg(dynid_avx)]
 mod pair;
 
 #[cfg(test)]
@@ -681,6 +645,17 @@ mod tests {
         assert_eq!((s[0], c[0]), sin_cos(0.5));
         assert!(s[1].is_nan() && c[1].is_nan() && s[3].is_nan() && c[3].is_nan());
         assert_eq!((s[2], c[2]), 1e300f64.sin_cos());
+    }
+
+    #[test]
+    fn the_avx_alias_is_the_target_condition() {
+        // build.rs sets `dynid_avx`; a silent miss would leave every kernel on the portable forms.
+        let target = cfg!(all(
+            target_arch = "x86_64",
+            target_feature = "avx2",
+            target_feature = "fma"
+        ));
+        assert_eq!(cfg!(dynid_avx), target);
     }
 
     #[test]
