@@ -6,7 +6,7 @@
 //! `python3 -m codegen <arm>...` run (the generator writes atomically, only changed content).
 //! Then `$OUT_DIR/arms.rs` gets one `dynid_macros::arm!(<arm>);` per arm plus `ALL`, which
 //! `src/arms.rs` includes. Adding an arm = adding its TOML and running `cargo build`.
-//! It also chooses the kernels' sine/cosine form for the build's CPU (`zmm_trig`).
+//! It also names the target's vector forms for the kernels' sine/cosine (`vector_cfgs`).
 //!
 //! Environment: `DYNID_PYTHON` overrides the interpreter (default: `.venv/bin/python` when
 //! `scripts/test.sh` has made it, else `python3`); `DYNID_ZMM_TRIG` the sine/cosine form.
@@ -24,31 +24,31 @@ struct Arm {
     generated: PathBuf,
 }
 
-/// The target's vector forms, as cfgs. `cfg(dynid_zmm_trig)`: `trig::sin_cos8` as one eight-lane
-/// AVX-512 evaluation, for a build
-/// whose target has AVX-512F and is this machine, an AMD CPU (its 512-bit instructions do not slow
-/// the scalar code beside them; an Intel core's do — see `trig::sin_cos8`). The values are the
-/// same either way. `DYNID_ZMM_TRIG=1` or `0` overrides the choice.
-fn zmm_trig() {
-    println!("cargo::rustc-check-cfg=cfg(dynid_zmm_trig)");
+/// The target's vector forms, as cfgs. `cfg(dynid_avx)`: x86-64 with AVX2 and FMA, what the
+/// four-lane and SSE-pair sine/cosine forms need (one name for the condition `trig` and `pack`
+/// test in many places). `cfg(dynid_zmm_trig)`, only on such a target with AVX-512F:
+/// `trig::sin_cos8` as one eight-lane evaluation, for a build whose target is this machine, an
+/// AMD CPU (its 512-bit instructions do not slow the scalar code beside them; an Intel core's
+/// do — see `trig::sin_cos8`). The values are the same either way. `DYNID_ZMM_TRIG=1` or `0`
+/// overrides the CPU check.
+fn vector_cfgs() {
     println!("cargo::rustc-check-cfg=cfg(dynid_avx)");
+    println!("cargo::rustc-check-cfg=cfg(dynid_zmm_trig)");
     println!("cargo:rerun-if-env-changed=DYNID_ZMM_TRIG");
     let features = std::env::var("CARGO_CFG_TARGET_FEATURE").unwrap_or_default();
     let has = |feature: &str| features.split(',').any(|f| f == feature);
-    // `cfg(dynid_avx)`: the target is x86-64 with AVX2 and FMA, what the four-lane and SSE-pair
-    // sine/cosine forms need (one name for the condition `trig` and `pack` test in many places).
     let x86_64 = std::env::var("CARGO_CFG_TARGET_ARCH").is_ok_and(|a| a == "x86_64");
-    if x86_64 && has("avx2") && has("fma") {
+    let avx = x86_64 && has("avx2") && has("fma");
+    if avx {
         println!("cargo:rustc-cfg=dynid_avx");
     }
-    let avx512 = has("avx512f");
     let native = std::env::var("TARGET").ok() == std::env::var("HOST").ok();
-    let on = match std::env::var("DYNID_ZMM_TRIG").as_deref() {
+    let wanted = match std::env::var("DYNID_ZMM_TRIG").as_deref() {
         Ok("1") => true,
         Ok("0") => false,
-        _ => avx512 && native && host_is_amd(),
+        _ => native && host_is_amd(),
     };
-    if on {
+    if avx && has("avx512f") && wanted {
         println!("cargo:rustc-cfg=dynid_zmm_trig");
     }
 }
@@ -85,7 +85,7 @@ fn run() -> Result<(), String> {
     let arms_dir = manifest.join("arms");
     let codegen = manifest.join("codegen");
 
-    zmm_trig();
+    vector_cfgs();
     println!("cargo:rerun-if-changed=arms");
     println!("cargo:rerun-if-env-changed=DYNID_PYTHON");
     // Individual generator files, not the directory: pytest and __pycache__ would retrigger.

@@ -184,19 +184,9 @@ pub fn sin_cos8<const N: usize>(x: [f64; N]) -> [(f64, f64); N] {
     const { assert!(N <= 8) };
     // Element by element: the lanes are assembled in registers (see `sin_cos_n`).
     let v: [f64; 8] = std::array::from_fn(|i| if i < N { x[i] } else { 0.0 });
-    #[cfg(all(
-        dynid_zmm_trig,
-        target_arch = "x86_64",
-        target_feature = "avx512f",
-        target_feature = "fma"
-    ))]
+    #[cfg(dynid_zmm_trig)]
     let all = avx512::sin_cos8(v);
-    #[cfg(not(all(
-        dynid_zmm_trig,
-        target_arch = "x86_64",
-        target_feature = "avx512f",
-        target_feature = "fma"
-    )))]
+    #[cfg(not(dynid_zmm_trig))]
     let all = {
         let lo = sin_cos4(v[0], v[1], v[2], v[3]);
         let hi = sin_cos4(v[4], v[5], v[6], v[7]);

@@ -195,12 +195,13 @@ pub fn raw_sums_sampled(
         // The held-out sets of `sampling.heldout`: the first block's, and how many blocks (a
         // model without held-out fits gives its full-data one, as one block: the rows keep
         // their width).
-        let heldout = sampling
-            .and_then(|a| a.heldout)
-            .map(|m| match placed[m].heldout {
-                true => (placed[m].block_set(0), nblocks),
-                false => (placed[m].first, 1),
-            });
+        let heldout = sampling.and_then(|a| a.heldout).map(|m| {
+            if placed[m].heldout {
+                (placed[m].block_set(0), nblocks)
+            } else {
+                (placed[m].first, 1)
+            }
+        });
         let cores = raw_cores(p);
         for cores in cores.chunks(batch) {
             let parts: Vec<(Vec<RawSums>, Vec<f64>)> = cores
