@@ -61,6 +61,8 @@ MODELLED_BY: dict[str, tuple[list[str], list[str]]] = {
 }
 GENERATED = ["planar2", "puma560", "panda", "scara"]
 CUTOFF_GRID = [1.0, 2.0, 4.0, 8.0, 16.0]
+# `--protocol split`: the share of the one run that is fitted (the rest is the holdout), as data/real's splits.
+SPLIT_FIT = 0.7
 
 
 # --- case generation --------------------------------------------------------------------------------------------
@@ -173,10 +175,19 @@ def new_effects(seed: int, kinds: list[str]) -> list[dict]:
     return out
 
 
-def case_spec(seed: int, quick: bool = False, extended: bool | list[str] = False) -> dict:
+def case_spec(
+    seed: int,
+    quick: bool = False,
+    extended: bool | list[str] = False,
+    protocol: str = "runs",
+    friction_everywhere: bool = False,
+) -> dict:
     """Everything random about a case, from its seed (the simulation itself is deterministic). `quick` (the test
     command's subset): the same draws, then at most 4 joints (planar2 or scara for a generated arm), 500 Hz and 15 s.
-    `extended`: the same case plus the effects real arms show ([`new_effects`]); a list: only those of them."""
+    `extended`: the same case plus the effects real arms show ([`new_effects`]); a list: only those of them.
+    `protocol` "split": one run twice as long, cut by time into fit and holdout ([`split_run`]).
+    `friction_everywhere`: viscous and Coulomb friction on every joint, as geared arms have (shares from a random
+    stream of their own, for the joints the case's draws left without)."""
     rng = np.random.default_rng(seed)
     spec: dict = {"seed": seed, "quick": quick}
     if rng.random() < 0.5:
@@ -215,6 +226,16 @@ def case_spec(seed: int, quick: bool = False, extended: bool | list[str] = False
         spec["effects"] = [e for e in spec["effects"] if e["joint"] <= n]
         spec["rate"] = min(spec["rate"], 500.0)
         spec["duration"] = 15.0
+    if friction_everywhere:
+        frng = np.random.default_rng(seed + 2_000_003)
+        for j in range(1, n + 1):
+            for e in ("viscous", "coulomb"):
+                share = float(frng.uniform(0.01, 0.30))
+                if not any(x["effect"] == e and x["joint"] == j for x in spec["effects"]):
+                    spec["effects"].append({"effect": e, "joint": j, "share": share})
+    spec["protocol"] = protocol
+    if protocol == "split":
+        spec["duration"] *= 2
     chosen = NEW_EFFECTS if extended is True else (extended or [])
     spec["new_effects"] = [e for e in new_effects(seed, spec["kinds"]) if e["effect"] in chosen]
     return spec
@@ -431,8 +452,9 @@ def label_term(label: str) -> str:
 
 
 def identify(dynid: str, arm: str, runs: list[Path], out: Path, extra: list[str]) -> dict:
-    cmd = [dynid, "identify", "--arm", arm, "--data", str(runs[0]), "--data", str(runs[1])]
-    cmd += ["--validate", str(runs[2]), "--out", str(out), "--physical", "off", *extra]
+    """`identify` fitted on every run but the last, validated on the last."""
+    cmd = [dynid, "identify", "--arm", arm, *(x for r in runs[:-1] for x in ("--data", str(r)))]
+    cmd += ["--validate", str(runs[-1]), "--out", str(out), "--physical", "off", *extra]
     start = time.perf_counter()
     p = subprocess.run(cmd, capture_output=True, text=True)
     secs = time.perf_counter() - start
@@ -456,7 +478,23 @@ def identify(dynid: str, arm: str, runs: list[Path], out: Path, extra: list[str]
             None if g["winner"] == "not identifiable" else g.get("validation_plain")
             for g in (r.get("guard") or {}).get("joints", [])
         ],
+        # Per joint, the guard's comparison on held-out training data: this fit's error over the plain fit's and the
+        # per-block t statistic (large when the plain fit is better block after block).
+        "heldout_vs_plain": [[g["ratio"], g["t_stat"]] for g in (r.get("guard") or {}).get("joints", [])],
     }
+
+
+def split_run(path: Path, fraction: float, work: Path) -> list[Path]:
+    """The real-data protocol (`--protocol split`): one logged run cut by time into a fit file (its first
+    `fraction`) and a holdout file (the rest), as data/real's TIAGo and Panda runs are."""
+    lines = path.read_text().splitlines()
+    t = np.array([float(line.split(",", 1)[0]) for line in lines[1:]])
+    cut = t[0] + fraction * (t[-1] - t[0])
+    head, rows = lines[0], lines[1:]
+    fit, hold = work / "fit.csv", work / "holdout.csv"
+    fit.write_text("\n".join([head, *(r for r, ti in zip(rows, t) if ti < cut)]) + "\n")
+    hold.write_text("\n".join([head, *(r for r, ti in zip(rows, t) if ti >= cut)]) + "\n")
+    return [fit, hold]
 
 
 def pattern_spec(path: Path) -> dict:
@@ -476,11 +514,11 @@ def pattern_spec(path: Path) -> dict:
     return spec
 
 
-def run_case(args: tuple[str, int, str, bool, str, bool]) -> dict:
-    dynid, seed, keep, quick, pattern, extended = args
+def run_case(args: tuple[str, int, str, bool, str, bool, str, bool]) -> dict:
+    dynid, seed, keep, quick, pattern, extended, protocol, friction = args
     import mujoco
 
-    spec = pattern_spec(Path(pattern)) if pattern else case_spec(seed, quick, extended)
+    spec = pattern_spec(Path(pattern)) if pattern else case_spec(seed, quick, extended, protocol, friction)
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(keep) / f"case{seed}" if keep else Path(tmp)
         work.mkdir(parents=True, exist_ok=True)
@@ -496,6 +534,8 @@ def run_case(args: tuple[str, int, str, bool, str, bool]) -> dict:
             capture_output=True,
         )
         runs, effects = simulate(mujoco, spec, urdf, work)
+        if spec.get("protocol") == "split":
+            runs = split_run(runs[0], SPLIT_FIT, work)
         truth = sorted(f"{e['effect']}{e['joint']}" for e in effects)
         terms = sorted(library_truth(effects)[0])
         true_arg = ",".join(f"{t.rstrip('0123456789')}:{t[len(t.rstrip('0123456789')) :]}" for t in terms) or "none"
@@ -702,6 +742,15 @@ def main(argv: list[str] | None = None) -> int:
         "--new-effects",
         help="comma list: only these of NEW_EFFECTS (each has its own draws, so the others' cases stay the same)",
     )
+    ap.add_argument(
+        "--protocol",
+        choices=["runs", "split"],
+        default="runs",
+        help="runs: fit 2 runs, validate on a third; split: one run cut by time, 70 %% fit, 30 %% held out",
+    )
+    ap.add_argument(
+        "--friction-everywhere", action="store_true", help="viscous and Coulomb friction on every joint, as geared arms"
+    )
     ap.add_argument("--pattern", type=Path, help="run one hand-written case (eval/patterns/*.json) instead")
     ap.add_argument(
         "--rescore", type=Path, nargs="+", metavar="DIR", help="score earlier runs' OUT dirs together (no identify)"
@@ -728,7 +777,10 @@ def main(argv: list[str] | None = None) -> int:
     extended = [e.strip() for e in a.new_effects.split(",")] if a.new_effects else a.extended
     if a.new_effects and (unknown := [e for e in extended if e not in NEW_EFFECTS]):
         ap.error(f"--new-effects: unknown {', '.join(unknown)} — known: {', '.join(NEW_EFFECTS)}")
-    jobs = [(str(Path(a.dynid).resolve()), s, keep, a.quick, pattern, extended) for s in seeds]
+    jobs = [
+        (str(Path(a.dynid).resolve()), s, keep, a.quick, pattern, extended, a.protocol, a.friction_everywhere)
+        for s in seeds
+    ]
     start = time.perf_counter()
     cases = []
     with ProcessPoolExecutor(max_workers=a.jobs) as pool:

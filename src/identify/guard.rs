@@ -29,6 +29,15 @@
 //!   18.8 % → 13.5 %, the plain fit's). The chance leads above are not affected: their missing
 //!   terms are zero in truth, and their coefficients stay within the critical value.
 //!
+//! - *Lead route*: a joint whose pooled held-out error is still more than [`LEAD`] over the
+//!   plain fit's gets every plain term it lacks, offset included, kept when they lower that
+//!   error — whatever the tests say. Both tests can miss a lead that is real: a drift or a
+//!   direction-dependent friction makes the per-block ratios change sign along the run (the
+//!   plain fit's offset takes the drift's mean: it loses early blocks and wins late ones), and
+//!   the offset is not among the coefficient route's terms. On the suite's split-run variant
+//!   (one run, fit on its first 70 %, held out on the rest, friction on every joint) such joints
+//!   went up to 3.2 × the plain fit on the holdout.
+//!
 //! What remains after additions comes from the shared rigid-body parameters (other joints' extra
 //! terms and weights move them); it is reported per joint with the margin, and as a warning when
 //! significant.
@@ -68,6 +77,13 @@ pub const COEFFICIENT_ROUTE: [Effect; 3] = [Effect::Viscous, Effect::Coulomb, Ef
 /// Held-out relative error of the plain fit at or above which a joint's torque counts as mostly
 /// noise: the fit then explains under 10 % of its torque power (1 − 0.95²).
 pub const NOISE_ERROR: f64 = 0.95;
+
+/// Lead of the plain fit's pooled held-out error on a joint past which the guard adds that
+/// joint's plain terms whatever the per-block test says. Below it a lead is chance: on the
+/// extended suite, joints the plain fit led by 0–2 % held out were predicted as well as by the
+/// plain fit on the unseen run (median ratio 1.000, in both the runs and split-run variants);
+/// a 5 % bar fixed one joint in 664 fewer and harmed none (docs/eval.md).
+pub const LEAD: f64 = 0.02;
 
 /// Relative margin within which two held-out errors are equal: the same model solved with its
 /// columns in another order differs by rounding only.
@@ -535,6 +551,38 @@ fn coefficient_route(
     Ok(tests)
 }
 
+/// The lead route (module docs): a joint whose pooled held-out error is still over
+/// `1 + LEAD` times the plain fit's gets every plain term it lacks, offset included, kept when
+/// they lower that joint's pooled held-out error.
+fn lead_route(
+    ctx: &Ctx,
+    g: &mut Growing,
+    (plain, e_plain): (&[Term], &Heldout),
+    weak: &[usize],
+) -> Result<(), RankError> {
+    for j in 0..e_plain.pooled.len() {
+        if weak.contains(&j) || g.e_sel.pooled[j] <= e_plain.pooled[j] * (1.0 + LEAD) {
+            continue;
+        }
+        let missing = ctx.addable(&g.terms, plain, |t| t.joint == j);
+        if missing.is_empty() {
+            continue;
+        }
+        let fix = format!(
+            "the model's held-out error on joint {} was {:.0} % over the plain fit's (past the {:.0} % bar, which counts whatever the per-block test says): added the plain terms it lacked there ({})",
+            j + 1,
+            100.0 * (g.e_sel.pooled[j] / e_plain.pooled[j] - 1.0),
+            100.0 * LEAD,
+            labels(&missing)
+        );
+        let next = g.with(ctx, &missing, fix)?;
+        if next.e_sel.pooled[j] < g.e_sel.pooled[j] * (1.0 - TIE) {
+            *g = next;
+        }
+    }
+    Ok(())
+}
+
 fn labels(terms: &[Term]) -> String {
     terms.iter().map(Term::label).collect::<Vec<_>>().join(", ")
 }
@@ -594,6 +642,7 @@ pub(super) fn guard(
             (t_crit, alpha),
             &weak_joints,
         )?;
+        lead_route(&ctx, &mut g, (&plain, &e_plain), &weak_joints)?;
         (g, first, tests, t_crit)
     };
     let Growing {
@@ -637,179 +686,4 @@ pub(super) fn guard(
 }
 
 #[cfg(test)]
-mod tests {
-    use crate::effects::{Effect, EffectsSpec, Term};
-    use crate::identify::synth::{generate, Spec};
-    use crate::identify::{run, Config, Rules};
-    use crate::log::Log;
-
-    fn spec(seed: u64) -> Spec {
-        let arm = crate::arms::resolve("planar2").unwrap();
-        let mut s = Spec::new(arm.dh_table().unwrap(), seed)
-            .with_effect(Effect::Viscous, 1, 0.6)
-            .with_effect(Effect::Coulomb, 1, 0.8);
-        s.duration = 20.0;
-        s.rate_hz = 200.0;
-        s
-    }
-
-    #[test]
-    fn a_model_that_missed_a_joints_friction_gets_the_plain_terms_back() {
-        // The oracle: joint 2 has viscous and Coulomb friction, joint 1 none. A search made
-        // blind (allowed no step) selects the rigid body only, which
-        // the plain fit — with friction on every joint — beats on joint 2. The guard must see
-        // that on held-out training blocks and add joint 2's plain terms (the true friction
-        // among them), after which the model predicts joint 2 as well as the plain fit does on
-        // a validation run it never saw.
-        let arm = crate::arms::resolve("planar2").unwrap();
-        let train = Log::from(generate(&spec(4)));
-        let val = Log::from(generate(&spec(5)));
-        let cfg = Config {
-            rules: Rules {
-                max_steps: 0,
-                ..Rules::default()
-            },
-            ..Config::default()
-        };
-        let out = run(&arm, vec![train], Some(val), &cfg).unwrap();
-        assert!(out.selection.steps.is_empty(), "{:?}", out.selection.steps);
-        let g = out.guard.as_ref().unwrap();
-        assert_eq!(g.cross_validation, "block");
-        let j2 = &g.joints[1];
-        // Before the guard the rigid model lost joint 2's friction (several times the plain
-        // fit's error); after it, joint 2 is no worse than the plain fit.
-        assert!(j2.selected_before_guard > 2.0 * j2.plain, "{j2:?}");
-        assert!(j2.selected <= j2.plain, "{j2:?}");
-        assert_eq!(j2.winner, "selected");
-        for e in [Effect::Viscous, Effect::Coulomb] {
-            let t = Term::new(e, 1);
-            assert!(
-                out.selection.guarded.contains(&t),
-                "{:?}",
-                out.selection.guarded
-            );
-        }
-        // On the unseen run: within 2 % of the plain fit's joint-2 error (the same joint
-        // model; only the shared rigid-body parameters differ by the other joint's terms).
-        let after = out.after.validation.as_ref().unwrap().per_joint[1];
-        let plain = out
-            .plain
-            .as_ref()
-            .unwrap()
-            .validation
-            .as_ref()
-            .unwrap()
-            .per_joint[1];
-        assert!(after <= 1.02 * plain, "after {after} plain {plain}");
-        // The friction coefficients come out close to the truth (1 % torque noise).
-        let coef = |e: Effect| {
-            out.effects
-                .iter()
-                .find(|(t, _)| *t == Term::new(e, 1))
-                .map(|(_, est)| est.value)
-                .unwrap()
-        };
-        assert!(
-            (coef(Effect::Viscous) - 0.6).abs() < 0.06,
-            "{}",
-            coef(Effect::Viscous)
-        );
-        assert!(
-            (coef(Effect::Coulomb) - 0.8).abs() < 0.08,
-            "{}",
-            coef(Effect::Coulomb)
-        );
-    }
-
-    #[test]
-    fn a_model_the_search_got_right_keeps_its_effects_and_its_accuracy() {
-        // With the default rules the search finds joint 2's friction itself. The plain fit has
-        // two more columns on joint 2 (offset, armature: zero in truth), so it may win there by
-        // noise — measured 0.03 % better, per-block t = -0.6 — which the guard's test must not
-        // take for evidence: nothing is added, the joint-2 error is the plain fit's to 0.1 %,
-        // and nothing is weak.
-        let arm = crate::arms::resolve("planar2").unwrap();
-        let train = Log::from(generate(&spec(6)));
-        let out = run(&arm, vec![train], None, &Config::default()).unwrap();
-        let mut found: Vec<String> = out
-            .selection
-            .steps
-            .iter()
-            .map(|s| s.label.clone())
-            .collect();
-        found.sort();
-        assert_eq!(found, ["coulomb2", "viscous2"]);
-        let g = out.guard.as_ref().unwrap();
-        let j2 = &g.joints[1];
-        assert!(
-            (j2.selected_before_guard / j2.plain - 1.0).abs() < 1e-3,
-            "{j2:?}"
-        );
-        assert!((j2.selected / j2.plain - 1.0).abs() < 1e-3, "{j2:?}");
-        assert!(!j2.significant, "{j2:?}");
-        assert!(out.selection.guarded.is_empty(), "{:?}", g.fixes);
-        assert!(g.weak.is_empty(), "{:?}", g.weak);
-    }
-
-    #[test]
-    fn a_guarded_model_with_load_dependent_terms_is_the_model_its_effects_name() {
-        // The load-dependent columns hold the torque of the model's other terms. When the guard
-        // adds plain terms after the load stage, those columns must be rebuilt from the guarded
-        // model, so that the same effects given as a fixed list (a user re-running the found
-        // model) predict the same torque. The search is made to miss joint 1's small Coulomb
-        // friction (an effect must explain 0.2 % of the torque power), not joint 2's
-        // load-dependent friction; the guard then adds joint 1's plain terms.
-        let arm = crate::arms::resolve("planar2").unwrap();
-        let mut s = Spec::new(arm.dh_table().unwrap(), 48)
-            .with_effect(Effect::Coulomb, 0, 0.08)
-            .with_effect(Effect::LoadCoulomb, 1, 0.15);
-        s.duration = 20.0;
-        s.rate_hz = 200.0;
-        let train = Log::from(generate(&s));
-        let val = Log::from(generate(&Spec { seed: 49, ..s }));
-        let fixed = |effects| Config {
-            effects,
-            rules: Rules {
-                min_share: 2e-3,
-                ..Rules::default()
-            },
-            smoothing: Some(crate::identify::Smoothing::default()),
-            derivative: crate::derivative::Options {
-                cutoff_hz: Some(8.0),
-                ..Default::default()
-            },
-            ..Config::default()
-        };
-        let auto = run(
-            &arm,
-            vec![train.clone()],
-            Some(val.clone()),
-            &fixed(EffectsSpec::Auto),
-        )
-        .unwrap();
-        let terms = auto.selection.terms.clone();
-        assert!(
-            !auto.selection.guarded.is_empty(),
-            "the guard added nothing: {:?} {:?}",
-            auto.selection.terms,
-            auto.guard
-        );
-        assert!(
-            terms.iter().any(|t| t.effect.needs_load()),
-            "no load-dependent term: {terms:?}"
-        );
-        let again = run(
-            &arm,
-            vec![train],
-            Some(val),
-            &fixed(EffectsSpec::Fixed(terms)),
-        )
-        .unwrap();
-        let per_joint =
-            |o: &crate::identify::Outcome| o.after.validation.as_ref().unwrap().per_joint.clone();
-        for (a, b) in per_joint(&auto).iter().zip(per_joint(&again)) {
-            // Equal but for the order of summation.
-            assert!((a - b).abs() < 1e-9 * b, "auto {a}, fixed list {b}");
-        }
-    }
-}
+mod tests;
