@@ -137,6 +137,11 @@ impl Table {
     }
 }
 
+/// Largest gap, in mean sample periods, between a log's last sample and the first of a log that
+/// goes on from it ([`Log::continues`]): a logger's jitter and a dropped sample or two, not a
+/// pause between runs.
+pub const CONTINUES_WITHIN: f64 = 3.0;
+
 /// Samples of one data file, in memory or spilled to disk; cheap to clone and to slice.
 #[derive(Debug, Clone)]
 pub struct Log {
@@ -145,6 +150,10 @@ pub struct Log {
     /// The recording its rows come from (its source; a [`Log::slice`] keeps its file's): one
     /// run, for effects that differ from run to run (`run_offset`).
     run: Arc<str>,
+    /// Time from its run's start to its first sample (s), read by `drift`: 0 for a file of its
+    /// own; a file that goes on where a training file stopped carries on that file's
+    /// ([`Log::continuing`]). A [`Log::slice`] keeps its file's.
+    run_time: f64,
     pub layout: RowLayout,
     /// This log's rows of the table: `lo..hi`.
     lo: usize,
@@ -163,6 +172,7 @@ impl From<Trajectory> for Log {
         }
         Log {
             run: t.source.as_str().into(),
+            run_time: 0.0,
             source: t.source,
             layout,
             lo: 0,
@@ -205,6 +215,7 @@ impl Log {
             })?;
         Ok(Log {
             run: origin.as_str().into(),
+            run_time: 0.0,
             source: origin,
             layout,
             lo: 0,
@@ -219,6 +230,7 @@ impl Log {
         debug_assert_eq!(layout.width(), table.width());
         Log {
             run: source.as_str().into(),
+            run_time: 0.0,
             source,
             layout,
             lo: 0,
@@ -230,6 +242,35 @@ impl Log {
     /// The recording this log's rows come from (see the field).
     pub fn run(&self) -> &str {
         &self.run
+    }
+
+    /// Time from its run's start to its first sample (s; see the field).
+    pub fn run_time(&self) -> f64 {
+        self.run_time
+    }
+
+    /// The training log of `train` this one goes on from — its first sample after that log's
+    /// last, within [`CONTINUES_WITHIN`] of that log's mean sample period — as one run: this
+    /// log then has that log's run and its time since the run's start goes on (a run split by
+    /// time into fit and holdout files, its time column kept). `None` when none does.
+    pub fn continues<'a>(&self, train: &'a [Log]) -> Option<&'a Log> {
+        let t0 = self.t(0);
+        train.iter().find(|l| {
+            let n = l.len();
+            if n < 2 || self.is_empty() {
+                return false;
+            }
+            let (first, last) = (l.t(0), l.t(n - 1));
+            let dt = (last - first) / (n - 1) as f64;
+            t0 > last && t0 - last <= CONTINUES_WITHIN * dt
+        })
+    }
+
+    /// This log as the rest of `earlier`'s run ([`Log::continues`]).
+    pub fn continuing(mut self, earlier: &Log) -> Log {
+        self.run_time = earlier.run_time + (self.t(0) - earlier.t(0));
+        self.run = earlier.run.clone();
+        self
     }
 
     /// The distinct recordings of `logs` ([`Log::run`]), in the order they first appear.
@@ -273,6 +314,7 @@ impl Log {
         Log {
             source: format!("{}[rows {}..{}]", self.source, lo + 1, hi),
             run: self.run.clone(),
+            run_time: self.run_time,
             layout: self.layout,
             lo: self.lo + lo,
             hi: self.lo + hi,
@@ -306,7 +348,11 @@ impl Log {
         };
         res.map_err(temp)?;
         let table = w.finish().map_err(temp)?;
-        Ok(Log::from_table(self.source.clone(), self.layout, table))
+        Ok(Log {
+            run: self.run.clone(),
+            run_time: self.run_time,
+            ..Log::from_table(self.source.clone(), self.layout, table)
+        })
     }
 
     /// Calls `f` with each of rows `r0..r1` in turn (the canonical row, see [`RowLayout`]).

@@ -207,7 +207,7 @@ pub fn raw_sums_sampled(
             let parts: Vec<(Vec<RawSums>, Vec<f64>)> = cores
                 .par_iter()
                 .map(|&core| {
-                    let mut rows = Rows::new(base, layout, p.log.run());
+                    let mut rows = Rows::for_log(base, layout, &p.log);
                     let (b0, b1) = core_blocks(p, core, nblocks);
                     let mut wanted = vec![false; sets.len()];
                     for model in &placed {
@@ -305,7 +305,7 @@ pub(super) fn heldout_per_filter(
         let parts: Vec<Vec<RawSums>> = raw_cores(p)
             .par_iter()
             .map(|&core| {
-                let mut rows = Rows::new(base, layout, p.log.run());
+                let mut rows = Rows::for_log(base, layout, &p.log);
                 let (b0, b1) = core_blocks(p, core, nblocks);
                 let wanted: Vec<bool> = (0..sets.len())
                     .map(|s| (b0..=b1).contains(&(s % nblocks)))

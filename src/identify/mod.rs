@@ -293,14 +293,28 @@ pub fn run(
     if let Some(v) = &validate {
         check_dof(v, &base)?;
     }
-    scan_and_run(
+    let earlier = validate.as_ref().and_then(|v| v.continues(&train)).cloned();
+    let validate = match (validate, &earlier) {
+        (Some(v), Some(e)) => Some(v.continuing(e)),
+        (v, _) => v,
+    };
+    let mut out = scan_and_run(
         arm,
         &base,
         &train,
         validate.as_ref(),
         cfg,
         &mut PrepCache::default(),
-    )
+    )?;
+    if let (Some(v), Some(e)) = (&validate, &earlier) {
+        out.warnings.push(format!(
+            "the validation file `{}` goes on where the training file `{}` stopped (its first sample {:.1} ms after that file's last): it is predicted as the rest of that run — a drift's time and a per-run offset go on from that file's. To predict it as a new run, give it a time column of its own (starting anywhere but just after that file's last sample)",
+            v.source,
+            e.source,
+            1e3 * (v.t(0) - e.t(e.len() - 1))
+        ));
+    }
+    Ok(out)
 }
 
 /// A declared per-run term needs its run among the training files (`run_offset:J@R`), and any

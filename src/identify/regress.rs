@@ -135,7 +135,7 @@ pub(super) fn accumulate_fits(
         })
         .collect();
     let active: Vec<Vec<usize>> = (0..n).map(|j| layout.active(j)).collect();
-    let mut rows = Rows::new(base, layout, p.log.run());
+    let mut rows = Rows::for_log(base, layout, &p.log);
     let (k0, k1) = p.keep;
     let all = cores(p, k0, k1);
     // The next chunk's rows are evaluated while this one is filtered and folded in (the folding

@@ -311,7 +311,7 @@ fn residuals(
     let stride = total.div_ceil(MAX_SAMPLES).max(1);
     let mut out = vec![(Vec::new(), Vec::new(), Vec::new()); joints.len()];
     for (file, p) in train.iter().enumerate() {
-        let mut rows = Rows::new(base, layout, p.log.run());
+        let mut rows = Rows::for_log(base, layout, &p.log);
         for (a, b) in cores(p, p.keep.0, p.keep.1) {
             let first = a.div_ceil(stride) * stride;
             if first >= b {

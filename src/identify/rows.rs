@@ -15,6 +15,7 @@ use super::row_table::{
 };
 use crate::derivative::States;
 use crate::effects::{JointState, Run};
+use crate::log::Log;
 use crate::pack::LANES;
 
 /// Fills regression rows for one state into its own buffer, `row[j * ncols + c]`. A joint's row
@@ -42,6 +43,8 @@ pub(super) struct Rows<'a> {
     states: Vec<JointState>,
     /// The run of the file whose rows these are (read by the per-run columns).
     run: Run,
+    /// Time from the run's start to the file's first sample (read by `drift`).
+    run_time: f64,
 }
 
 impl<'a> Rows<'a> {
@@ -49,6 +52,7 @@ impl<'a> Rows<'a> {
     pub(super) fn new(base: &'a BaseModel, layout: &'a Layout, run: &str) -> Self {
         Rows {
             run: layout.run_of(run),
+            run_time: 0.0,
             base,
             layout,
             scratch: base.scratch(),
@@ -61,6 +65,14 @@ impl<'a> Rows<'a> {
             batch_state: vec![0.0; LANES * 3 * layout.dof],
             batch_lanes: 0,
             states: Vec::with_capacity(layout.dof),
+        }
+    }
+
+    /// Rows of `layout` for `log`: its run and its time since the run's start.
+    pub(super) fn for_log(base: &'a BaseModel, layout: &'a Layout, log: &Log) -> Self {
+        Rows {
+            run_time: log.run_time(),
+            ..Rows::new(base, layout, log.run())
         }
     }
 
@@ -82,7 +94,7 @@ impl<'a> Rows<'a> {
             std::mem::take(&mut self.dq),
             std::mem::take(&mut self.ddq),
         );
-        self.place(&q, &dq, &ddq, k as f64 * st.dt);
+        self.place(&q, &dq, &ddq, self.run_time + k as f64 * st.dt);
         (self.q, self.dq, self.ddq) = (q, dq, ddq);
         &self.row
     }
@@ -109,7 +121,7 @@ impl<'a> Rows<'a> {
         }
         self.state_and_base(st, k, None);
         let (terms, scales) = (&self.layout.terms, &self.layout.scales);
-        let time = k as f64 * st.dt;
+        let time = self.run_time + k as f64 * st.dt;
         for (j, o) in out.iter_mut().enumerate() {
             let (q, dq, ddq) = (self.q[j], self.dq[j], self.ddq[j]);
             // From locals moved into the closure: reading `self.yb` and `nb` through references
@@ -238,7 +250,7 @@ impl RowTable {
         // Per chunk: each joint's rows, each joint's torque.
         type Part = (Vec<Vec<f64>>, Vec<Vec<f64>>);
         let part = |(a, b): (usize, usize), given: Option<&BasePart>| -> Part {
-            let mut rows = Rows::new(base, layout, p.log.run());
+            let mut rows = Rows::for_log(base, layout, &p.log);
             let mut out: Vec<Vec<f64>> = widths
                 .iter()
                 .map(|w| Vec::with_capacity(w * (b - a)))
@@ -485,8 +497,8 @@ mod tests {
             let (n, nc) = (layout.dof, layout.ncols());
             let active: Vec<Vec<usize>> = (0..n).map(|j| layout.active(j)).collect();
             let (mut straight, mut gathered) = (
-                Rows::new(&base, layout, p.log.run()),
-                Rows::new(&base, layout, p.log.run()),
+                Rows::for_log(&base, layout, &p.log),
+                Rows::for_log(&base, layout, &p.log),
             );
             for k in [0, 1, 2, 3, 4, 7, 150, 199] {
                 let mut got = vec![Vec::new(); n];
@@ -597,8 +609,8 @@ mod tests {
         );
         let st = p.states(0, 100);
         let (mut a, mut b) = (
-            Rows::new(&base, &first, p.log.run()),
-            Rows::new(&base, &wider, p.log.run()),
+            Rows::for_log(&base, &first, &p.log),
+            Rows::for_log(&base, &wider, &p.log),
         );
         let (n, nc, nw) = (first.dof, first.ncols(), wider.ncols());
         let at: Vec<usize> = (0..nc)
