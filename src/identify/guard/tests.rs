@@ -14,6 +14,12 @@ fn spec(seed: u64) -> Spec {
     s
 }
 
+/// Joint 2's validation error on the unseen run: the model's and the plain fit's.
+fn unseen_joint2(out: &crate::identify::Outcome) -> (f64, f64) {
+    let joint2 = |m: &crate::identify::ModelResult| m.validation.as_ref().unwrap().per_joint[1];
+    (joint2(&out.after), joint2(out.plain.as_ref().unwrap()))
+}
+
 #[test]
 fn a_model_that_missed_a_joints_friction_gets_the_plain_terms_back() {
     // The oracle: joint 2 has viscous and Coulomb friction, joint 1 none. A search made
@@ -52,15 +58,7 @@ fn a_model_that_missed_a_joints_friction_gets_the_plain_terms_back() {
     }
     // On the unseen run: within 2 % of the plain fit's joint-2 error (the same joint
     // model; only the shared rigid-body parameters differ by the other joint's terms).
-    let after = out.after.validation.as_ref().unwrap().per_joint[1];
-    let plain = out
-        .plain
-        .as_ref()
-        .unwrap()
-        .validation
-        .as_ref()
-        .unwrap()
-        .per_joint[1];
+    let (after, plain) = unseen_joint2(&out);
     assert!(after <= 1.02 * plain, "after {after} plain {plain}");
     // The friction coefficients come out close to the truth (1 % torque noise).
     let coef = |e: Effect| {
@@ -126,15 +124,7 @@ fn a_joint_the_plain_fit_leads_by_more_than_the_bar_gets_its_plain_terms_whateve
         "{j1:?}"
     );
     assert!(j1.added.is_empty(), "{j1:?}");
-    let after = out.after.validation.as_ref().unwrap().per_joint[1];
-    let plain = out
-        .plain
-        .as_ref()
-        .unwrap()
-        .validation
-        .as_ref()
-        .unwrap()
-        .per_joint[1];
+    let (after, plain) = unseen_joint2(&out);
     assert!(after <= 1.02 * plain, "after {after} plain {plain}");
 }
 
