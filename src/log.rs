@@ -254,10 +254,13 @@ impl Log {
     /// log then has that log's run and its time since the run's start goes on (a run split by
     /// time into fit and holdout files, its time column kept). `None` when none does.
     pub fn continues<'a>(&self, train: &'a [Log]) -> Option<&'a Log> {
+        if self.is_empty() {
+            return None;
+        }
         let t0 = self.t(0);
         train.iter().find(|l| {
             let n = l.len();
-            if n < 2 || self.is_empty() {
+            if n < 2 {
                 return false;
             }
             let (first, last) = (l.t(0), l.t(n - 1));

@@ -122,21 +122,23 @@ mod tests {
     use crate::identify::{run, Config};
     use crate::log::Log;
 
+    /// A planar2 fit of `terms` on `train`, validated on `val`.
+    fn fit(train: Log, val: Log, terms: Vec<Term>) -> crate::identify::Outcome {
+        let arm = crate::arms::resolve("planar2").unwrap();
+        let cfg = Config {
+            effects: EffectsSpec::Fixed(terms),
+            ..Config::default()
+        };
+        run(&arm, vec![train], Some(val), &cfg).unwrap()
+    }
+
     /// The warnings of a fit of `terms` on `train`, validated on `val`.
     fn warnings_of(
         train: &crate::data::Trajectory,
         val: &crate::data::Trajectory,
         terms: Vec<Term>,
     ) -> Vec<String> {
-        let arm = crate::arms::resolve("planar2").unwrap();
-        let cfg = Config {
-            effects: EffectsSpec::Fixed(terms),
-            ..Config::default()
-        };
-        let logs = vec![Log::from(train.clone())];
-        run(&arm, logs, Some(Log::from(val.clone())), &cfg)
-            .unwrap()
-            .warnings
+        fit(Log::from(train.clone()), Log::from(val.clone()), terms).warnings
     }
 
     /// The oracle is a known shift: the training run itself as validation gives no warning; the
@@ -237,22 +239,16 @@ mod tests {
             .with_effect(Effect::Drift, 1, 0.02);
         let run_log = Log::from(generate(&spec));
         let cut = run_log.len() * 7 / 10;
-        let (fit, hold) = (run_log.slice(0, cut), run_log.slice(cut, run_log.len()));
+        let (train, hold) = (run_log.slice(0, cut), run_log.slice(cut, run_log.len()));
         let fresh = {
             let mut t = hold.read(0, hold.len());
             let t0 = t.t[0];
             t.t.iter_mut().for_each(|x| *x -= t0);
             Log::from(t)
         };
-        let cfg = Config {
-            effects: EffectsSpec::Fixed(vec![
-                Term::new(Effect::Viscous, 1),
-                Term::new(Effect::Drift, 1),
-            ]),
-            ..Config::default()
-        };
-        let on = run(&arm, vec![fit.clone()], Some(hold), &cfg).unwrap();
-        let new = run(&arm, vec![fit], Some(fresh), &cfg).unwrap();
+        let terms = vec![Term::new(Effect::Viscous, 1), Term::new(Effect::Drift, 1)];
+        let on = fit(train.clone(), hold, terms.clone());
+        let new = fit(train, fresh, terms);
         let j2 = |o: &crate::identify::Outcome| o.after.validation.as_ref().unwrap().per_joint[1];
         let in_sample = on.after.train.per_joint[1];
         assert!(
